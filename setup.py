@@ -1,0 +1,32 @@
+"""Build script of the stiction_ros ament_python package."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'stiction_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench', 'bench.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib'],
+    zip_safe=True,
+    maintainer='stiction_ros developers',
+    maintainer_email='dev@stiction-ros.invalid',
+    description='Control-valve stiction models in live ROS 2 loops, and their diagnosis.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'stiction-sim = stiction_ros.cli.sim:main',
+            'stiction-study = stiction_ros.cli.study:main',
+        ],
+    },
+)

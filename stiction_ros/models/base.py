@@ -1,0 +1,161 @@
+"""
+The interface every valve model shares: one sample at a time or a whole array.
+
+Signals are in % of span: ``u`` is the valve input (controller output OP after
+any mA-to-% conversion), ``y`` the valve position (MV).
+
+Each model keeps *all* of its memory in one float array (``self.state``) and
+advances it with one kernel function ``_run(u, y, state)``.  ``simulate()``
+runs the kernel over a whole array, ``step()`` runs it over one sample; since
+the kernel carries everything in ``state``, both give identical results, and a
+fast compiled kernel can replace the Python one without changing behaviour.
+"""
+
+import math
+
+import numpy as np
+
+
+class ModelError(ValueError):
+    """A model parameter or input is invalid; the message says which and why."""
+
+
+def check_finite(name, value, low=-math.inf, high=math.inf):
+    """Return ``value`` as float if it is finite and within [low, high], else raise."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f'{name} must be a number, got {value!r}') from None
+    if not math.isfinite(v):
+        raise ModelError(f'{name} must be finite, got {v}')
+    if v < low or v > high:
+        raise ModelError(f'{name} = {v} is outside [{low}, {high}]')
+    return v
+
+
+def clip(x, low=0.0, high=100.0):
+    """Clamp a scalar to [low, high] (faster than numpy for one value)."""
+    return low if x < low else high if x > high else x
+
+
+def as_signal(u, name='input'):
+    """Return ``u`` as a 1-D float64 array, rejecting NaN and infinities."""
+    a = np.asarray(u, dtype=np.float64)
+    if a.ndim != 1:
+        a = a.reshape(-1)
+    if a.size and not np.all(np.isfinite(a)):
+        bad = int(np.flatnonzero(~np.isfinite(a))[0])
+        raise ModelError(f'{name} has a non-finite value at index {bad}: {a[bad]}')
+    return a
+
+
+class ValveModel:
+    """
+    Base class: subclasses define ``PARAMS``, ``_initial_state`` and ``_run``.
+
+    ``PARAMS`` maps each parameter name to ``(default, low, high, description)``.
+    """
+
+    name = 'base'
+    PARAMS = {}
+
+    def __init__(self, **params):
+        unknown = set(params) - set(self.PARAMS)
+        if unknown:
+            raise ModelError(
+                f'{self.name}: unknown parameter(s) {sorted(unknown)}; '
+                f'valid: {sorted(self.PARAMS)}')
+        values = {k: spec[0] for k, spec in self.PARAMS.items()}
+        values.update(params)
+        self._params = self._validate(values)
+        self._y0 = None
+        self.state = None
+
+    # -- parameters --------------------------------------------------------
+    def _validate(self, values):
+        """Check every value against its range; subclasses add cross-checks."""
+        out = {}
+        for k, (_, low, high, _) in self.PARAMS.items():
+            if isinstance(low, str):
+                if values[k] not in high:
+                    raise ModelError(
+                        f'{self.name}: {k} = {values[k]!r} is not one of {list(high)}')
+                out[k] = values[k]
+            else:
+                out[k] = check_finite(f'{self.name}: {k}', values[k], low, high)
+        return out
+
+    @property
+    def params(self):
+        """Return a copy of the current parameter values."""
+        return dict(self._params)
+
+    def set_params(self, **changes):
+        """Change parameters, all or none; they apply from the next sample on."""
+        unknown = set(changes) - set(self.PARAMS)
+        if unknown:
+            raise ModelError(f'{self.name}: unknown parameter(s) {sorted(unknown)}')
+        merged = dict(self._params)
+        merged.update(changes)
+        self._params = self._validate(merged)
+        self._on_params_changed()
+
+    def _on_params_changed(self):
+        """Recompute derived constants; the dynamic state is kept."""
+
+    def __getattr__(self, key):
+        params = self.__dict__.get('_params')
+        if params is not None and key in params:
+            return params[key]
+        raise AttributeError(f'{type(self).__name__!s} has no attribute {key!r}')
+
+    def __repr__(self):
+        args = ', '.join(f'{k}={v!r}' for k, v in self._params.items())
+        return f'{type(self).__name__}({args})'
+
+    # -- simulation --------------------------------------------------------
+    def reset(self, y0=None):
+        """
+        Forget the history; the next sample starts the valve at rest.
+
+        The valve rests at ``y0`` (% of travel) or, if None, at the first
+        input it sees, with no friction force stored: breaking away in either
+        direction then takes the static band, not S.
+        """
+        self._y0 = None if y0 is None else check_finite('y0', y0, 0.0, 100.0)
+        self.state = None
+
+    def step(self, u):
+        """Advance one sample with input ``u`` and return the new position."""
+        x = check_finite('valve input', u)
+        if self.state is None:
+            self.state = self._new_state(x)
+        y = np.empty(1)
+        self._run(np.array([x]), y, self.state)
+        return float(y[0])
+
+    def simulate(self, u, y0=None):
+        """Reset, run the whole input array and return positions of the same length."""
+        a = as_signal(u, 'valve input')
+        self.reset(y0)
+        y = np.empty_like(a)
+        if a.size:
+            self.state = self._new_state(float(a[0]))
+            self._run(a, y, self.state)
+        return y
+
+    @property
+    def position(self):
+        """Return the current position, or None before the first sample."""
+        return None if self.state is None else float(self.state[0])
+
+    def _new_state(self, u0):
+        return np.array(self._initial_state(u0, self._y0), dtype=np.float64)
+
+    def _initial_state(self, u0, y0):
+        """Return the state (position first) of a valve at rest before input ``u0``."""
+        raise NotImplementedError
+
+    def _run(self, u, y, state):
+        """Advance over the array ``u``, writing ``y`` and updating ``state`` in place."""
+        raise NotImplementedError

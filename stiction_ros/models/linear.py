@@ -1,0 +1,19 @@
+"""The ideal valve: position equals input, within travel."""
+
+from stiction_ros.models.base import ValveModel
+
+
+class Linear(ValveModel):
+    """No friction: ``y = clip(u, 0, 100)``; the reference a healthy valve meets."""
+
+    name = 'linear'
+    PARAMS = {}
+
+    def _initial_state(self, u0, y0):
+        return [min(max(u0, 0.0), 100.0)]
+
+    def _run(self, u, y, st):
+        for k in range(len(u)):
+            uk = u[k]
+            st[0] = 0.0 if uk < 0.0 else 100.0 if uk > 100.0 else uk
+            y[k] = st[0]

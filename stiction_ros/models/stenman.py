@@ -1,0 +1,34 @@
+"""
+Stenman et al. one-parameter stiction model (chapter eq. 2.3).
+
+``y(k) = y(k-1)`` while ``|u(k) - y(k-1)| < d``, else ``y(k) = u(k)``.  The
+chapter prints ``u(k-1)`` in the first branch; a stuck valve holds its previous
+*position*, so we use ``y(k-1)`` as MODELS.md explains.  The band d is called
+``S`` here so that every model takes the same parameter name on the ROS side.
+"""
+
+from stiction_ros.models.base import ValveModel
+
+
+class Stenman(ValveModel):
+    """One-parameter model: the valve jumps to the input once it is d away."""
+
+    name = 'stenman'
+    PARAMS = {
+        'S': (0.0, 0.0, 100.0, 'stiction band d of eq. 2.3, % of span'),
+    }
+
+    def _initial_state(self, u0, y0):
+        return [min(max(u0, 0.0), 100.0) if y0 is None else y0]
+
+    def _run(self, u, y, st):
+        stenman_kernel(u, y, st, self._params['S'])
+
+
+def stenman_kernel(u, y, st, d):
+    """Advance Stenman's model over ``u``, writing ``y`` and updating ``st``."""
+    for k in range(len(u)):
+        uk = 0.0 if u[k] < 0.0 else 100.0 if u[k] > 100.0 else u[k]
+        if abs(uk - st[0]) >= d:
+            st[0] = uk
+        y[k] = st[0]

@@ -1,0 +1,156 @@
+"""
+Process models: a transfer function with dead time, discretised exactly.
+
+``PV = pv0 + G(s) e^{-delay s} (MV - mv0)`` around an operating point, so a
+self-regulating plant starts in equilibrium at ``MV = mv0``, ``PV = pv0`` and
+an integrating one (a pole at s = 0) starts at rest there.
+
+The input is held constant over each sample (zero-order hold, as the valve
+node holds its last position), which makes the discretisation exact: the
+delay-free part is discretised with ``scipy.signal.cont2discrete`` and a
+fractional dead time ``theta`` splits each sample into two held segments.
+"""
+
+import math
+
+import numpy as np
+from scipy import signal
+
+from stiction_ros.models.base import check_finite
+
+
+class PlantError(ValueError):
+    """The plant description is invalid; the message names the field and the fix."""
+
+
+def _poly(name, coeffs):
+    try:
+        a = np.atleast_1d(np.asarray(coeffs, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise PlantError(f'plant.{name} must be a list of numbers, got {coeffs!r}') from None
+    if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
+        raise PlantError(
+            f'plant.{name} must be a non-empty list of finite numbers, got {coeffs!r}')
+    nz = np.flatnonzero(a)
+    if nz.size == 0:
+        raise PlantError(f'plant.{name} is all zeros')
+    return a[nz[0]:]
+
+
+class TransferFunctionPlant:
+    """
+    A SISO plant ``num(s)/den(s) * exp(-delay s)`` sampled at ``sample_time``.
+
+    Use ``output()`` to read PV at the current instant and ``update(mv)`` to
+    apply MV over the next sample; or ``simulate(mv)`` for a whole array.
+    """
+
+    def __init__(self, num, den, delay=0.0, sample_time=1.0, mv0=0.0, pv0=0.0,
+                 noise_std=0.0, disturbance_steps=(), seed=None):
+        self.num = _poly('num', num)
+        self.den = _poly('den', den)
+        if self.num.size > self.den.size:
+            raise PlantError(
+                f'plant is not proper: numerator degree {self.num.size - 1} exceeds '
+                f'denominator degree {self.den.size - 1}; a physical process cannot '
+                'respond before it is excited; add poles or remove zeros')
+        self.delay = check_finite('plant.delay', delay, 0.0, 1e7)
+        self.sample_time = check_finite('plant.sample_time', sample_time, 1e-9, 1e7)
+        self.mv0 = check_finite('plant.mv0', mv0)
+        self.pv0 = check_finite('plant.pv0', pv0)
+        self.noise_std = check_finite('plant.noise_std', noise_std, 0.0)
+        self.disturbance_steps = sorted(
+            (check_finite('disturbance time', t), check_finite('disturbance size', m))
+            for t, m in disturbance_steps)
+        poles = np.roots(self.den)
+        if np.any(poles.real > 1e-9) or np.sum(np.abs(poles) < 1e-9) > 1:
+            raise PlantError(
+                f'plant.den has poles {np.round(poles, 6).tolist()}: the open-loop process '
+                'is unstable (a right-half-plane pole or a double integrator); '
+                'the simulator only takes stable or single-integrating processes')
+        self.integrating = bool(np.any(np.abs(poles) < 1e-9))
+        self._discretise()
+        self._rng = np.random.default_rng(seed)
+        self.reset()
+
+    def _discretise(self):
+        a, b, c, d = signal.tf2ss(self.num, self.den)
+        ts = self.sample_time
+        steps = self.delay / ts
+        m = int(math.floor(steps + 1e-9))
+        theta = self.delay - m * ts
+        if theta < 1e-9 * ts:
+            theta = 0.0
+        phi, gam = _zoh(a, b, c, d, ts)
+        if theta == 0.0:
+            g0, g1 = gam, np.zeros_like(gam)
+        else:
+            # Within one sample the delayed input is u[k-m-1] for theta
+            # seconds, then u[k-m] for the rest.
+            phi_rest, g_rest = _zoh(a, b, c, d, ts - theta)
+            _, g_theta = _zoh(a, b, c, d, theta)
+            g0, g1 = g_rest, phi_rest @ g_theta
+        self._phi, self._g0, self._g1 = phi, g0[:, 0], g1[:, 0]
+        self._c, self._d = c[0], float(d[0, 0])
+        self._m = m
+        self._fractional = theta > 0.0
+        self.dc_gain = (math.inf if self.integrating
+                        else float(self.num[-1] / self.den[-1]))
+
+    def reset(self):
+        """Return to the operating point: PV = pv0, MV = mv0 held for all past time."""
+        self._x = np.zeros(self._phi.shape[0])
+        # past deviations of MV: u[k-1], ..., u[k-m-1] (newest first)
+        self._hist = [0.0] * (self._m + 1)
+        self.time = 0.0
+        self._last = 0.0
+
+    def _delayed(self, lag):
+        """Return the deviation input applied ``lag`` samples ago (lag >= 1)."""
+        return self._hist[lag - 1]
+
+    def output(self, noisy=True):
+        """PV at the current instant (before the next ``update``)."""
+        if self._fractional:
+            held = self._delayed(self._m + 1)
+        elif self._m > 0:
+            held = self._delayed(self._m)
+        else:
+            # No dead time: a biproper plant feeds through the input that is
+            # being held up to this instant, i.e. the previous sample's MV.
+            held = self._last
+        y = self.pv0 + float(self._c @ self._x) + self._d * held
+        for t, size in self.disturbance_steps:
+            if self.time >= t - 1e-9 * self.sample_time:
+                y += size
+        if noisy and self.noise_std > 0.0:
+            y += self.noise_std * self._rng.standard_normal()
+        return y
+
+    def update(self, mv):
+        """Hold ``mv`` over the next sample and advance the state by one sample."""
+        u = check_finite('plant input (MV)', mv) - self.mv0
+        m = self._m
+        now = u if m == 0 else self._delayed(m)
+        x = self._phi @ self._x + self._g0 * now
+        if self._fractional:
+            x += self._g1 * self._delayed(m + 1)
+        self._x = x
+        self._hist.insert(0, u)
+        self._hist.pop()
+        self._last = u
+        self.time += self.sample_time
+
+    def simulate(self, mv, noisy=True):
+        """Reset and return PV for each sample of the MV array (PV read before MV applies)."""
+        self.reset()
+        out = np.empty(len(mv))
+        for k, u in enumerate(np.asarray(mv, dtype=np.float64)):
+            out[k] = self.output(noisy)
+            self.update(u)
+        return out
+
+
+def _zoh(a, b, c, d, dt):
+    phi, gam, _, _, _ = signal.cont2discrete((a, b, c, d), dt, method='zoh')
+    return phi, gam

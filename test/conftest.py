@@ -1,0 +1,10 @@
+"""Test-wide settings: DDS stays on this machine, each run on its own domain."""
+
+import os
+
+# Set before any test imports rclpy, and inherited by every node process the
+# tests start: discovery only on 127.0.0.1, and a domain of our own so that
+# parallel runs on the same machine do not see each other.
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+os.environ.setdefault('MPLBACKEND', 'Agg')

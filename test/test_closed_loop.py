@@ -1,0 +1,100 @@
+"""The offline loop: Table 2.1 behaviour, config errors that name the key, the CLI."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stiction_ros.cli import sim
+from stiction_ros.closed_loop import simulate_loop
+from stiction_ros.describing_function import predict_limit_cycle, valve_describing_function
+from stiction_ros.limit_cycle import measure_oscillation
+from stiction_ros.loop_config import ConfigError, load_loop
+from stiction_ros.closed_loop import build_valve
+from stiction_ros.models import Linear
+
+CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'concentration_loop.yaml'
+
+
+def run(case=None, **overrides):
+    return simulate_loop(load_loop(CONFIG, case, overrides))
+
+
+def test_healthy_valve_settles_on_the_setpoint():
+    d = run(**{'valve': {'model': 'linear'}})
+    assert abs(d['pv'][-1] - d['sp'][-1]) < 1e-6
+    assert not measure_oscillation(d['op'], 1.0).oscillating
+
+
+@pytest.mark.parametrize('case', ['undershoot', 'no_offset', 'overshoot'])
+def test_stiction_cases_give_a_limit_cycle_and_pv_averages_to_setpoint(case):
+    d = run(case)
+    osc = measure_oscillation(d['op'], 1.0)
+    assert osc.oscillating and osc.regularity > 3
+    # integral action: the mean PV over whole cycles sits at the set point
+    pv = d['pv'][1000:]
+    assert abs(pv.mean() - 1.0) < 0.2 * np.ptp(pv)
+
+
+def test_limit_cycle_is_faster_and_larger_as_the_slip_jump_grows():
+    periods, amps = [], []
+    for case in ('undershoot', 'no_offset', 'overshoot'):
+        osc = measure_oscillation(run(case)['pv'], 1.0)
+        periods.append(osc.period)
+        amps.append(osc.amplitude)
+    assert periods[0] > periods[1] > periods[2]
+    assert amps[0] < amps[1] < amps[2]
+
+
+def test_kano_and_choudhury_give_the_same_closed_loop():
+    a = run('undershoot', **{'valve.model': 'kano'})
+    b = run('undershoot', **{'valve.model': 'choudhury'})
+    np.testing.assert_allclose(a['mv'], b['mv'], atol=1e-9)
+
+
+def test_describing_function_of_ideal_valve_is_one_and_predicts_no_cycle():
+    assert valve_describing_function(Linear(), 5.0) == pytest.approx(1.0, abs=1e-9)
+    cfg = load_loop(CONFIG, None, {'valve': {'model': 'linear'}})
+    assert predict_limit_cycle(cfg, build_valve(cfg), n_amplitudes=20) == []
+
+
+def test_describing_function_and_simulation_agree_on_the_no_offset_case():
+    cfg = load_loop(CONFIG, 'no_offset')
+    pred = predict_limit_cycle(cfg, build_valve(cfg), n_amplitudes=60)
+    assert len(pred) == 1
+    osc = measure_oscillation(simulate_loop(cfg)['op'], 1.0)
+    # harmonic balance assumes a sinusoidal valve input; OP is triangular, so
+    # only rough agreement is expected (see docs/REPRODUCTION.md)
+    assert pred[0]['period'] == pytest.approx(osc.period, rel=0.25)
+    assert pred[0]['amplitude'] == pytest.approx(osc.amplitude, rel=0.3)
+
+
+def test_open_loop_source_drives_the_valve():
+    d = run(None, **{'controller.mode': 'open_loop', 'duration': 400.0,
+                     'controller.op': {'type': 'sine', 'offset': 50, 'amplitude': 10,
+                                       'period': 200}})
+    assert d['op'].max() == pytest.approx(60.0, abs=0.01)
+    assert np.ptp(d['mv']) > 10.0  # it moves, with stiction, around the sine
+
+
+@pytest.mark.parametrize('overrides,match', [
+    ({'valve.SS': 3}, "valve.SS: unknown key; did you mean 'S'"),
+    ({'controller.setpont': 3}, "did you mean 'setpoint'"),
+    ({'valve.model': 'kanno'}, "did you mean 'kano'"),
+    ({'sample_time': 0}, 'sample_time: must be a positive'),
+    ({'controller.mode': 'open_loop'}, 'controller.op: missing'),
+])
+def test_config_errors_name_the_key_and_the_fix(overrides, match):
+    with pytest.raises(ConfigError, match=match):
+        load_loop(CONFIG, None, overrides)
+
+
+def test_cli_writes_csv_and_reports_errors_in_one_line(tmp_path, capsys):
+    out = tmp_path / 'x.csv'
+    assert sim.main([str(CONFIG), '--case', 'overshoot', '--duration', '50', '-o', str(out),
+                     '--quiet']) == 0
+    data = np.genfromtxt(out, delimiter=',', names=True)
+    assert data.dtype.names == ('t', 'sp', 'op', 'mv', 'pv') and len(data) == 51
+    assert sim.main([str(CONFIG), '--set', 'plant.den=[1, -1]']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'unstable' in err[0]

@@ -1,0 +1,68 @@
+"""The sampled plant must reproduce the continuous process exactly at the samples."""
+
+import math
+
+import numpy as np
+import pytest
+
+from stiction_ros.plant import PlantError, TransferFunctionPlant
+
+
+@pytest.mark.parametrize('delay', [0.0, 10.0, 2.5, 0.3])
+@pytest.mark.parametrize('ts', [1.0, 0.1])
+def test_first_order_step_response_is_analytic(delay, ts):
+    k, tau = 3.0, 10.0
+    p = TransferFunctionPlant([k], [tau, 1.0], delay=delay, sample_time=ts, mv0=50.0, pv0=2.0)
+    n = int(round(60.0 / ts))
+    pv = p.simulate(np.full(n, 51.0))  # a step of +1 at t = 0, held
+    t = np.arange(n) * ts
+    expect = 2.0 + k * np.where(t >= delay, 1 - np.exp(-np.clip(t - delay, 0, None) / tau), 0)
+    np.testing.assert_allclose(pv, expect, atol=1e-9)
+
+
+def test_second_order_with_zero_matches_scipy_continuous_response():
+    from scipy import signal
+    num, den = [2.0, 1.0], [4.0, 2.0, 1.0]
+    ts = 0.25
+    p = TransferFunctionPlant(num, den, delay=0.75, sample_time=ts, mv0=0.0)
+    n = 200
+    pv = p.simulate(np.ones(n))
+    _, y = signal.step((num, den), T=np.arange(n) * ts)
+    expect = np.r_[np.zeros(3), y[:-3]]  # 0.75 s of dead time = 3 samples
+    np.testing.assert_allclose(pv, expect, atol=1e-9)
+
+
+def test_integrating_plant_ramps():
+    p = TransferFunctionPlant([0.5], [1.0, 0.0], delay=2.0, sample_time=1.0, mv0=50.0)
+    pv = p.simulate(np.full(20, 52.0))
+    t = np.arange(20.0)
+    np.testing.assert_allclose(pv, 0.5 * 2.0 * np.clip(t - 2.0, 0, None), atol=1e-9)
+    assert p.integrating and math.isinf(p.dc_gain)
+
+
+def test_biproper_plant_feeds_through_previous_sample():
+    p = TransferFunctionPlant([2.0, 1.0], [1.0, 1.0], sample_time=0.1, mv0=0.0)
+    pv = p.simulate(np.ones(5))
+    # (2s+1)/(s+1) = 2 - 1/(s+1): step response 1 + exp(-t), seen one sample late
+    assert pv[0] == 0.0 and pv[1] == pytest.approx(1.0 + math.exp(-0.1), abs=1e-12)
+
+
+def test_noise_and_disturbance():
+    p = TransferFunctionPlant([1.0], [1.0, 1.0], sample_time=1.0, noise_std=0.5, seed=4,
+                              disturbance_steps=[(10.0, 3.0)])
+    pv = p.simulate(np.zeros(4000))
+    assert np.std(pv[:10] - 0) < 2.0
+    assert np.mean(pv[10:]) == pytest.approx(3.0, abs=0.05)
+    assert np.std(pv[10:]) == pytest.approx(0.5, rel=0.05)
+
+
+@pytest.mark.parametrize('num,den,match', [
+    ([1.0, 0.0, 0.0], [1.0, 1.0], 'not proper'),
+    ([1.0], [1.0, -1.0], 'unstable'),
+    ([1.0], [1.0, 0.0, 0.0], 'double integrator'),
+    ([1.0], [0.0, 0.0], 'all zeros'),
+    ([float('nan')], [1.0, 1.0], 'finite'),
+])
+def test_invalid_plants_are_rejected_with_the_reason(num, den, match):
+    with pytest.raises(PlantError, match=match):
+        TransferFunctionPlant(num, den)
