@@ -32,8 +32,12 @@ def stuck_runs(mv, tol):
 
 def measure_sj(op, mv, tol=1e-9):
     """
-    Return dict(S, J, fd, reversals, max_step) measured from reversals in the record.
+    Return dict(S, J, J_bands, fd, reversals, max_step) measured from reversals.
 
+    ``J`` is the output jump at breakaway; ``J_bands = S - 2 fd`` reads it off
+    the bands instead, which also works for a valve whose slip takes several
+    samples (the physical model).  ``fd`` is the signed lag of the output
+    behind the input while moving (negative when it overshoots, J > S).
     ``max_step`` is the largest input increment, the resolution of S and J.
     NaN values are returned when no stick-slip reversal is found.
     """
@@ -55,9 +59,14 @@ def measure_sj(op, mv, tol=1e-9):
     # Skip the first moving sample after each stop: it holds the jump.
     settled = moving.copy()
     settled[1:] &= moving[:-1]
-    fd = float(np.median(np.abs(op[settled] - mv[settled]))) if settled.any() else np.nan
+    direction = np.zeros(len(mv))
+    direction[1:] = np.sign(np.diff(mv))
+    lag = direction[settled] * (op[settled] - mv[settled])
+    fd = float(np.median(lag)) if settled.any() else np.nan
+    s_med = float(np.median(s_vals)) if s_vals else np.nan
     return {
-        'S': float(np.median(s_vals)) if s_vals else np.nan,
+        'S': s_med,
+        'J_bands': s_med - 2.0 * fd,
         'J': float(np.median(j_vals)) if j_vals else np.nan,
         'fd': fd,
         'reversals': len(s_vals),

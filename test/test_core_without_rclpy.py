@@ -3,7 +3,7 @@
 import subprocess
 import sys
 
-PROBE = r'''
+PROBE = r"""
 import importlib, pkgutil, sys
 
 class NoRos:
@@ -24,7 +24,7 @@ for name in names:
 from stiction_ros.models import create
 assert create('kano', S=5, J=2).simulate([50, 60, 40]).shape == (3,)
 print(len(names))
-'''
+"""
 
 
 def test_core_modules_import_without_ros():

@@ -56,7 +56,8 @@ def test_sj_measured_from_slow_sinusoid_equal_parameters(name, S, J):
 def test_moving_valve_lags_input_by_kinetic_band(S, J):
     u = slow_sine()
     got = measure_sj(u, Kano(S=S, J=J).simulate(u))
-    assert got['fd'] == pytest.approx(abs(S - J) / 2, abs=1e-9)
+    assert got['fd'] == pytest.approx((S - J) / 2, abs=1e-9)
+    assert got['J_bands'] == pytest.approx(J, abs=got['max_step'] + 1e-9)
 
 
 @pytest.mark.parametrize('S,J', CASES)
@@ -111,7 +112,8 @@ def test_step_equals_simulate(name):
 
 def test_stuck_valve_holds_inside_the_band():
     # After a reversal the valve stays put while the input wanders less than S.
-    u = np.concatenate([np.linspace(40, 60, 200), 60 - 2.4 * np.abs(np.sin(np.linspace(0, 20, 800)))])
+    wander = 2.4 * np.abs(np.sin(np.linspace(0, 20, 800)))
+    u = np.concatenate([np.linspace(40, 60, 200), 60 - wander])
     y = Kano(S=5.0, J=1.0).simulate(u)
     assert np.ptp(y[200:]) == 0.0
 
@@ -177,9 +179,11 @@ def test_choudhury_ewma_is_eq_2_5():
     np.testing.assert_allclose(y, np.clip(ref, 0, 100), atol=1e-9)
 
 
-@pytest.mark.parametrize('char,pos,flow', [('linear', 50, 50.0),
-                                           ('square_root', 25, 50.0),
-                                           ('equal_percentage', 50, 100 * (math.sqrt(50) - 1) / 49)])
+@pytest.mark.parametrize('char,pos,flow', [
+    ('linear', 50, 50.0),
+    ('square_root', 25, 50.0),
+    ('equal_percentage', 50, 100 * (math.sqrt(50) - 1) / 49),
+])
 def test_choudhury_flow_characteristics(char, pos, flow):
     m = Choudhury(characteristic=char)
     assert m.simulate([pos])[0] == pytest.approx(flow)

@@ -15,10 +15,7 @@ from stiction_ros.models.choudhury import Choudhury
 from stiction_ros.models.he import He
 from stiction_ros.models.kano import Kano
 from stiction_ros.models.linear import Linear
-try:  # TEMP until physical.py lands
-    from stiction_ros.models.physical import Physical
-except ImportError:
-    Physical = Linear
+from stiction_ros.models.physical import Physical
 from stiction_ros.models.stenman import Stenman
 
 MODELS = {cls.name: cls for cls in (Kano, Choudhury, Stenman, He, Physical, Linear)}

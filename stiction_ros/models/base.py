@@ -70,6 +70,7 @@ class ValveModel:
         self._params = self._validate(values)
         self._y0 = None
         self.state = None
+        self._on_params_changed()
 
     # -- parameters --------------------------------------------------------
     def _validate(self, values):

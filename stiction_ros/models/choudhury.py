@@ -41,10 +41,6 @@ class Choudhury(ValveModel):
         'rangeability': (50.0, 1.5, 1000.0, 'rangeability R of the equal-percentage curve'),
     }
 
-    def __init__(self, **params):
-        super().__init__(**params)
-        self._on_params_changed()
-
     def _on_params_changed(self):
         self._char = characteristic_code(self._params['characteristic'])
         self._ma_in = self._params['input_units'] == 'mA'

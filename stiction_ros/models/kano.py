@@ -30,10 +30,6 @@ class Kano(ValveModel):
         'sample_time': (1.0, 1e-6, 1e6, 'sample time for the lag, s'),
     }
 
-    def __init__(self, **params):
-        super().__init__(**params)
-        self._on_params_changed()
-
     def _on_params_changed(self):
         self._a = first_order_pole(self._params['tau'], self._params['sample_time'])
 

@@ -1,0 +1,542 @@
+"""
+Force-balance (physical) valve model, eqs. 2.1-2.2 of the chapter.
+
+The stem obeys ``M x'' = A*p - k*x - F0 + F_f`` with the friction of eq. 2.2:
+Coulomb ``Fc`` and viscous ``Fv*v`` while sliding, up to ``Fs`` of static
+friction while stuck, and optionally a Stribeck term
+``Fc + (Fs-Fc)*exp(-(v/vs)^2)`` in place of ``Fc``.  The valve input ``u``
+(% of span) commands the actuator pressure linearly between ``p_min`` and
+``p_max``; the actuator pressure follows it through a first-order I/P lag
+``tau_ip``.  The output is the stem position in % of the travel ``x_max``.
+
+Stick/slip logic (no floating-point ``v == 0`` tests):
+
+* Sliding in direction ``d`` (+1 opening, -1 closing), a *stop event* happens
+  when the velocity changes sign (``d*v < 0``) or, with ``v_stick > 0``, when
+  the stem decelerates inside the low-velocity band ``0 <= d*v < v_stick``
+  (Karnopp's zero-velocity band).  At the event the stem sticks if the net
+  force ``N = A*p - k*x - F0`` satisfies ``|N| <= Fs``; otherwise after a sign
+  change it keeps sliding the other way, and after a band event it keeps
+  sliding until the velocity really changes sign.  The band matters because
+  the default valve is heavily over-damped (``Fv/(2*sqrt(k*M))`` is about
+  100): after a move in one direction its velocity decays towards zero
+  exponentially and never changes sign, so with ``v_stick = 0`` it would
+  creep for ever and never need a breakaway (no slip jump) when the input
+  moves on in the same direction.  ``v_stick = 0`` gives the pure
+  sign-change rule.
+* Stuck, the stem breaks away when ``|N| > Fs``, in the direction of ``N``.
+* End stops at ``x = 0`` and ``x = x_max``: reaching one stops the stem
+  (``v = 0``, stuck); it leaves only when ``N`` points away from the stop and
+  exceeds ``Fs`` (the same breakaway rule, with the direction into the stop
+  barred).
+
+Integrators: ``'exact'`` propagates ``[x, v, p]`` between events with matrix
+exponentials (the dynamics are linear with a constant input within a sample:
+zero-order hold on the commanded pressure), finds velocity events on a sub-grid
+of exact propagators (spacing Ts/2**q, at most a tenth of the mechanical time
+scale and of ``tau_ip``) and refines their time by bisection with finer exact
+propagators, down to 1e-10 s; the breakaway instant of a stuck stem is solved
+in closed form, since the pressure is monotone within a sample.
+``'substep'`` takes semi-implicit steps of length ``substep`` (viscous friction
+implicit); it is the reference for ``'exact'`` and the only integrator for the
+Stribeck term: with ``stribeck=True`` the ``'exact'`` setting falls back to
+``'substep'`` internally (the sliding dynamics are then non-linear).
+"""
+
+import math
+
+import numpy as np
+from scipy.linalg import expm
+
+from stiction_ros.models.base import ModelError, ValveModel
+
+# Indices into the constants array handed to the kernels.
+_M, _K, _A, _F0, _XMAX, _PMIN, _DP, _TAU, _FC, _FS, _FV, _VS, _TS, _VSTICK = range(14)
+_DT, _EP, _NSUB, _STRIB, _NCONST = 14, 15, 16, 17, 18
+
+# Indices into the state array; state[0] is the output, as base.py requires.
+S_Y, S_X, S_V, S_P, S_STUCK, S_DIR, S_SIGNWAIT = range(7)
+STATE_SIZE = 7
+
+# Finest bisection step when refining an event time, in seconds.
+_T_RESOLUTION = 1e-10
+# Most substeps per sample the substep integrator may take.
+_MAX_SUBSTEPS = 100_000_000
+# Sub-grid spacing as a fraction of the shortest time on which the sliding
+# velocity can turn (mechanical time scale or tau_ip).
+_GRID_FRACTION = 0.1
+
+
+def _net_force(c, x, p):
+    """Return ``A*p - k*x - F0``, the force that friction must balance (N)."""
+    return c[_A] * p - c[_K] * x - c[_F0]
+
+
+def _mech_time_scale(M, k, Fv):
+    """
+    Return the time scale (s) on which a sliding stem's velocity can change sign.
+
+    Under-damped: 1/omega_d.  Over-damped: the slow pole's time constant; the
+    fast pole (about M/Fv) only relaxes the velocity to its force balance and
+    cannot make it change sign on its own.
+    """
+    a = Fv / M
+    w2 = k / M
+    disc = a * a - 4.0 * w2
+    if disc < 0.0:
+        return 1.0 / math.sqrt(-disc / 4.0)
+    slow = 2.0 * w2 / (a + math.sqrt(disc))
+    return 1.0 / slow
+
+
+def _event(w, d, signwait, c):
+    """Whether state ``w`` of a stem sliding in direction ``d`` is past an event."""
+    x = w[0]
+    if x > c[_XMAX] or x < 0.0:
+        return True
+    dv = d * w[1]
+    if dv < 0.0:
+        return True
+    if signwait or dv >= c[_VSTICK]:
+        return False
+    acc = (c[_A] * w[2] - c[_K] * x - c[_FV] * w[1] + w[4]) / c[_M]
+    return d * acc < 0.0
+
+
+def _run_exact(u, y, state, c, phis, hs, q, jmax):
+    """
+    Advance ``state`` over inputs ``u`` with exact propagators; write positions into ``y``.
+
+    ``phis[j]`` propagates ``w = [x, v, p, p_cmd, -F0 - d*Fc]`` sliding over
+    ``hs[j] = Ts / 2**j``; level ``q`` is the event-detection sub-grid and
+    level ``jmax`` the finest bisection step.
+    """
+    A = c[_A]
+    k = c[_K]
+    F0 = c[_F0]
+    xmax = c[_XMAX]
+    tau = c[_TAU]
+    Fc = c[_FC]
+    Fs = c[_FS]
+    ts = c[_TS]
+    hmin = hs[jmax]
+    x = state[S_X]
+    v = state[S_V]
+    p = state[S_P]
+    stuck = state[S_STUCK] > 0.5
+    d = state[S_DIR]
+    signwait = state[S_SIGNWAIT] > 0.5
+    if x > xmax or x < 0.0:
+        x = min(max(x, 0.0), xmax)
+        v = 0.0
+        stuck = True
+    w = np.empty(5)
+    for i in range(u.shape[0]):
+        ui = u[i]
+        ui = 0.0 if ui < 0.0 else 100.0 if ui > 100.0 else ui
+        pc = c[_PMIN] + ui * 0.01 * c[_DP]
+        if tau <= 0.0:
+            p = pc
+        t = 0.0
+        while ts - t >= hmin:
+            if stuck:
+                rem = ts - t
+                base = k * x + F0
+                n0 = A * p - base
+                tb = -1.0
+                pb = p
+                if n0 > Fs and x < xmax:
+                    tb = 0.0
+                    d = 1.0
+                elif n0 < -Fs and x > 0.0:
+                    tb = 0.0
+                    d = -1.0
+                elif tau > 0.0:
+                    ninf = A * pc - base
+                    # p moves monotonically to pc, so only one threshold can be met.
+                    if ninf > Fs and x < xmax:
+                        pb = (base + Fs) / A
+                        tb = tau * math.log((p - pc) / (pb - pc))
+                        d = 1.0
+                    elif ninf < -Fs and x > 0.0:
+                        pb = (base - Fs) / A
+                        tb = tau * math.log((p - pc) / (pb - pc))
+                        d = -1.0
+                if tb < 0.0 or tb >= rem:
+                    if tau > 0.0:
+                        p = pc + (p - pc) * math.exp(-rem / tau)
+                    break
+                t += tb
+                p = pb
+                v = 0.0
+                stuck = False
+                signwait = False
+            w[0] = x
+            w[1] = v
+            w[2] = p
+            w[3] = pc
+            w[4] = -F0 - d * Fc
+            while True:
+                rem = ts - t
+                j = q
+                while hs[j] > rem and j < jmax:
+                    j += 1
+                if hs[j] > rem:
+                    break
+                w1 = phis[j] @ w
+                if not _event(w1, d, signwait, c):
+                    w = w1
+                    t += hs[j]
+                    continue
+                # Bisection: no event at w (time t), an event at w1 (t + hs[jj-1]).
+                for jj in range(j + 1, jmax + 1):
+                    wm = phis[jj] @ w
+                    if _event(wm, d, signwait, c):
+                        w1 = wm
+                    else:
+                        w = wm
+                        t += hs[jj]
+                t += hmin
+                w = w1
+                xe = w[0]
+                if xe > xmax or xe < 0.0:
+                    w[0] = xmax if xe > xmax else 0.0
+                    w[1] = 0.0
+                    stuck = True
+                elif abs(A * w[2] - k * xe - F0) <= Fs:
+                    w[1] = 0.0
+                    stuck = True
+                elif d * w[1] < 0.0:
+                    d = -d
+                    signwait = False
+                    w[4] = -F0 - d * Fc
+                else:
+                    signwait = True
+                if stuck:
+                    break
+            x = w[0]
+            v = w[1]
+            p = w[2]
+            if not stuck:
+                break
+        y[i] = x / xmax * 100.0
+    state[S_Y] = x / xmax * 100.0
+    state[S_X] = x
+    state[S_V] = v
+    state[S_P] = p
+    state[S_STUCK] = 1.0 if stuck else 0.0
+    state[S_DIR] = d
+    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
+
+
+def _run_substep(u, y, state, c):
+    """Advance ``state`` over inputs ``u`` with fixed semi-implicit substeps; fill ``y``."""
+    M = c[_M]
+    A = c[_A]
+    k = c[_K]
+    F0 = c[_F0]
+    xmax = c[_XMAX]
+    tau = c[_TAU]
+    Fc = c[_FC]
+    Fs = c[_FS]
+    Fv = c[_FV]
+    vs = c[_VS]
+    vstick = c[_VSTICK]
+    dt = c[_DT]
+    ep = c[_EP]
+    nsub = int(c[_NSUB])
+    stribeck = c[_STRIB] > 0.5
+    dtm = dt / M
+    damp = 1.0 + dt * Fv / M
+    x = state[S_X]
+    v = state[S_V]
+    p = state[S_P]
+    stuck = state[S_STUCK] > 0.5
+    d = state[S_DIR]
+    signwait = state[S_SIGNWAIT] > 0.5
+    if x > xmax or x < 0.0:
+        x = min(max(x, 0.0), xmax)
+        v = 0.0
+        stuck = True
+    for i in range(u.shape[0]):
+        ui = u[i]
+        ui = 0.0 if ui < 0.0 else 100.0 if ui > 100.0 else ui
+        pc = c[_PMIN] + ui * 0.01 * c[_DP]
+        if tau <= 0.0:
+            p = pc
+        for _ in range(nsub):
+            if tau > 0.0:
+                p = pc + (p - pc) * ep
+            n = A * p - k * x - F0
+            if stuck:
+                if n > Fs and x < xmax:
+                    d = 1.0
+                elif n < -Fs and x > 0.0:
+                    d = -1.0
+                else:
+                    continue
+                stuck = False
+                signwait = False
+                v = 0.0
+            ff = Fc
+            if stribeck:
+                r = v / vs
+                ff = Fc + (Fs - Fc) * math.exp(-r * r)
+            vn = (v + dtm * (n - d * ff)) / damp
+            xn = x + dt * vn
+            if xn > xmax or xn < 0.0:
+                x = xmax if xn > xmax else 0.0
+                v = 0.0
+                stuck = True
+                continue
+            dv = d * vn
+            event = dv < 0.0 or (not signwait and dv < vstick and dv < d * v)
+            x = xn
+            v = vn
+            if event:
+                if abs(A * p - k * x - F0) <= Fs:
+                    v = 0.0
+                    stuck = True
+                elif dv < 0.0:
+                    d = -d
+                    signwait = False
+                else:
+                    signwait = True
+        y[i] = x / xmax * 100.0
+    state[S_Y] = x / xmax * 100.0
+    state[S_X] = x
+    state[S_V] = v
+    state[S_P] = p
+    state[S_STUCK] = 1.0 if stuck else 0.0
+    state[S_DIR] = d
+    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
+
+
+class Physical(ValveModel):
+    """
+    Pneumatic valve from Newton's law with Coulomb, viscous and static friction.
+
+    Parameters are SI (see ``PARAMS``); defaults are the USP lab valve of
+    MODELS.md.  The input ``u`` (%, clipped to [0, 100]) commands the pressure
+    ``p_cmd = p_min + u/100*(p_max - p_min)``, held constant over each sample
+    of length ``sample_time``; the actuator pressure follows it with time
+    constant ``tau_ip`` (0: instantly).  The output is ``x/x_max*100``.
+
+    State layout (all memory, so ``step`` and ``simulate`` agree):
+    ``[y %, x m, v m/s, p Pa, stuck 0/1, direction +-1, waiting-for-sign-change 0/1]``.
+
+    With ``stribeck=True`` the ``'exact'`` integrator falls back to
+    ``'substep'`` internally, because the sliding dynamics are no longer linear.
+
+    ``v_stick`` is an addition to eq. 2.2 (Karnopp's zero-velocity band, see
+    the module docstring): without it the over-damped default valve never
+    comes to rest after a one-way move.  ``v_stick = 0`` is the pure rule.
+
+    Cross-checks (``ModelError``): ``Fs >= Fc``; ``p_max > p_min``; the stem
+    must be able to move, which here means both (1) at full pressure the
+    actuator lifts the closed stem off its seat, ``A*p_max - F0 > Fs``, and
+    (2) after an opening stroke the pressure range can reverse the friction,
+    ``A*(p_max - p_min) > Fs + Fc`` (quasi-static S below 100 %); and, where
+    substeps are used, ``dt*sqrt(k/M) < 1`` for a stable spring update.
+    """
+
+    name = 'physical'
+    PARAMS = {
+        'M': (1.6, 1e-4, 1e5, 'mass of the moving parts (kg)'),
+        'k': (210490.0, 1.0, 1e10, 'spring constant (N/m)'),
+        'A': (0.0445, 1e-6, 100.0, 'diaphragm area (m^2)'),
+        'F0': (2550.0, 0.0, 1e8, 'spring preload at x = 0 (N)'),
+        'x_max': (0.029, 1e-5, 10.0, 'stem travel (m)'),
+        'p_min': (41368.0, 0.0, 1e8, 'actuator pressure at u = 0 % (Pa)'),
+        'p_max': (180000.0, 1.0, 1e8, 'actuator pressure at u = 100 % (Pa)'),
+        'tau_ip': (3.571, 0.0, 1e4, 'I/P first-order time constant (s); 0: none'),
+        'Fc': (700.0, 0.0, 1e8, 'Coulomb (kinetic) friction (N)'),
+        'Fs': (780.0, 0.0, 1e8, 'static friction (N), at least Fc'),
+        'Fv': (125000.0, 0.0, 1e10, 'viscous friction coefficient (N*s/m)'),
+        'vs': (5e-4, 1e-9, 100.0, 'Stribeck velocity (m/s)'),
+        'stribeck': (False, 'choice', (False, True),
+                     'use Fc + (Fs-Fc)*exp(-(v/vs)^2) as sliding friction'),
+        'v_stick': (1e-7, 0.0, 1e-2,
+                    'stem sticks when decelerating below this speed with |N| <= Fs (m/s); '
+                    '0: only at a velocity sign change'),
+        'sample_time': (1.0, 1e-5, 1000.0, 'loop sample time Ts (s)'),
+        'integrator': ('exact', 'choice', ('exact', 'substep'),
+                       'exact: matrix exponentials and events; substep: fixed steps'),
+        'substep': (1e-5, 1e-8, 1.0, 'internal step of the substep integrator (s)'),
+    }
+
+    def _validate(self, values):
+        """Check ranges, then the physical cross-checks."""
+        out = super()._validate(values)
+        n = self.name
+        if out['p_max'] <= out['p_min']:
+            raise ModelError(f'{n}: p_max = {out["p_max"]} must exceed p_min = {out["p_min"]}')
+        if out['Fs'] < out['Fc']:
+            raise ModelError(
+                f'{n}: static friction Fs = {out["Fs"]} N is below Coulomb friction '
+                f'Fc = {out["Fc"]} N; Fs >= Fc is required')
+        lift = out['A'] * out['p_max'] - out['F0']
+        if lift <= out['Fs']:
+            raise ModelError(
+                f'{n}: the stem cannot move: at p_max the actuator net force A*p_max - F0 = '
+                f'{lift:.6g} N does not exceed static friction Fs = {out["Fs"]} N, so the '
+                'stem never leaves its seat')
+        span = out['A'] * (out['p_max'] - out['p_min'])
+        if span <= out['Fs'] + out['Fc']:
+            raise ModelError(
+                f'{n}: the stem cannot move both ways: the actuator force range '
+                f'A*(p_max - p_min) = {span:.6g} N does not exceed Fs + Fc = '
+                f'{out["Fs"] + out["Fc"]} N, so a stroke can never be reversed')
+        if out['integrator'] == 'substep' or out['stribeck']:
+            dt, nsub = _substep_length(out['sample_time'], out['substep'])
+            if nsub > _MAX_SUBSTEPS:
+                raise ModelError(
+                    f'{n}: sample_time/substep = {nsub} substeps per sample is too many '
+                    f'(at most {_MAX_SUBSTEPS:.0e})')
+            if dt * math.sqrt(out['k'] / out['M']) >= 1.0:
+                raise ModelError(
+                    f'{n}: substep {dt:.3g} s is too long for the spring: it must be below '
+                    f'sqrt(M/k) = {math.sqrt(out["M"] / out["k"]):.3g} s')
+        return out
+
+    def _on_params_changed(self):
+        """Recompute the constants and the exact propagators; the state is kept."""
+        pr = self._params
+        c = np.zeros(_NCONST)
+        c[_M] = pr['M']
+        c[_K] = pr['k']
+        c[_A] = pr['A']
+        c[_F0] = pr['F0']
+        c[_XMAX] = pr['x_max']
+        c[_PMIN] = pr['p_min']
+        c[_DP] = pr['p_max'] - pr['p_min']
+        c[_TAU] = pr['tau_ip']
+        c[_FC] = pr['Fc']
+        c[_FS] = pr['Fs']
+        c[_FV] = pr['Fv']
+        c[_VS] = pr['vs']
+        c[_TS] = pr['sample_time']
+        c[_VSTICK] = pr['v_stick']
+        dt, nsub = _substep_length(pr['sample_time'], pr['substep'])
+        c[_DT] = dt
+        c[_EP] = math.exp(-dt / pr['tau_ip']) if pr['tau_ip'] > 0.0 else 0.0
+        c[_NSUB] = nsub
+        c[_STRIB] = 1.0 if pr['stribeck'] else 0.0
+        self._c = c
+        self._use_exact = pr['integrator'] == 'exact' and not pr['stribeck']
+        if self._use_exact:
+            self._build_propagators()
+
+    def _build_propagators(self):
+        """Tabulate ``expm(F*Ts/2**j)`` for the sub-grid level and every bisection level."""
+        pr = self._params
+        ts = pr['sample_time']
+        scale = _mech_time_scale(pr['M'], pr['k'], pr['Fv'])
+        if pr['tau_ip'] > 0.0:
+            scale = min(scale, pr['tau_ip'])
+        h_grid = _GRID_FRACTION * scale
+        q = max(0, math.ceil(math.log2(ts / h_grid)))
+        jmax = max(q + 8, math.ceil(math.log2(ts / _T_RESOLUTION)))
+        F = np.zeros((5, 5))
+        F[0, 1] = 1.0
+        F[1, 0] = -pr['k'] / pr['M']
+        F[1, 1] = -pr['Fv'] / pr['M']
+        F[1, 2] = pr['A'] / pr['M']
+        F[1, 4] = 1.0 / pr['M']
+        if pr['tau_ip'] > 0.0:
+            F[2, 2] = -1.0 / pr['tau_ip']
+            F[2, 3] = 1.0 / pr['tau_ip']
+        hs = ts * 0.5 ** np.arange(jmax + 1)
+        # Levels coarser than the sub-grid are never used; NaN makes misuse loud.
+        phis = np.full((jmax + 1, 5, 5), np.nan)
+        for j in range(q, jmax + 1):
+            phis[j] = expm(F * hs[j])
+        self._phis = phis
+        self._hs = hs
+        self._q = q
+        self._jmax = jmax
+
+    # -- helpers for users and tests --------------------------------------
+    def p_cmd(self, u):
+        """Commanded actuator pressure (Pa) for input ``u`` (%), clipped to [0, 100]."""
+        uc = min(max(float(u), 0.0), 100.0)
+        return self._params['p_min'] + uc / 100.0 * (self._params['p_max'] - self._params['p_min'])
+
+    def net_force(self, state=None):
+        """Return ``A*p - k*x - F0`` (N), the force friction balances, of ``state`` or now."""
+        s = self.state if state is None else state
+        if s is None:
+            return None
+        return float(_net_force(self._c, s[S_X], s[S_P]))
+
+    @property
+    def stuck(self):
+        """Whether the stem is at rest (stuck or at a stop); None before the first sample."""
+        return None if self.state is None else bool(self.state[S_STUCK] > 0.5)
+
+    # -- kernel -------------------------------------------------------------
+    def _initial_state(self, u0, y0):
+        pr = self._params
+        pc = self.p_cmd(u0)
+        if y0 is None:
+            x = (pr['A'] * pc - pr['F0']) / pr['k']
+            x = min(max(x, 0.0), pr['x_max'])
+        else:
+            x = y0 / 100.0 * pr['x_max']
+        state = np.zeros(STATE_SIZE)
+        state[S_Y] = x / pr['x_max'] * 100.0
+        state[S_X] = x
+        state[S_P] = pc
+        state[S_STUCK] = 1.0
+        state[S_DIR] = 1.0
+        return state
+
+    def _run(self, u, y, state):
+        if self._use_exact:
+            _run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
+        else:
+            _run_substep(u, y, state, self._c)
+
+
+def _substep_length(ts, substep):
+    """Return ``(dt, n)``: ``n`` equal substeps of length ``dt <= substep`` filling ``ts``."""
+    n = max(1, math.ceil(ts / substep - 1e-9))
+    return ts / n, n
+
+
+def quasi_static_sj(**params):
+    """
+    Return the data-driven equivalent ``dict(S, J, S_rest, D, gain)`` of a physical valve.
+
+    Quasi-static motion (no inertia, no viscous force, no I/P lag) maps the
+    friction onto the input axis through the actuator force span
+    ``A*(p_max - p_min)``:
+
+    * ``S = (Fs + Fc)/(A*dp)*100``: input travel after a reversal before the
+      stem moves (deadband plus stickband), in % of input;
+    * ``J = (Fs - Fc)/(A*dp)*100``: slip jump, expressed on the input axis
+      (multiply by ``gain`` for % of stem travel);
+    * ``D = (F0/A - p_min)/dp*100``: input where the frictionless spring
+      balance leaves the seat (offset of the MV-OP line);
+    * ``gain = A*dp/(k*x_max)``: stem % per input % along that line, so a
+      stem position ``y`` maps back to the input axis as ``D + y/gain``.
+
+    Unknown names raise ``ModelError``; missing ones take ``Physical``'s defaults.
+    """
+    unknown = set(params) - set(Physical.PARAMS)
+    if unknown:
+        raise ModelError(f'quasi_static_sj: unknown parameter(s) {sorted(unknown)}')
+    pr = {k: spec[0] for k, spec in Physical.PARAMS.items()}
+    pr.update(params)
+    dp = float(pr['p_max']) - float(pr['p_min'])
+    if dp <= 0.0:
+        raise ModelError('quasi_static_sj: p_max must exceed p_min')
+    span = float(pr['A']) * dp
+    return {
+        'S': (float(pr['Fs']) + float(pr['Fc'])) / span * 100.0,
+        'J': (float(pr['Fs']) - float(pr['Fc'])) / span * 100.0,
+        # from rest with no friction stored, each direction needs Fs: 2 Fs wide
+        'S_rest': 2.0 * float(pr['Fs']) / span * 100.0,
+        'D': (float(pr['F0']) / float(pr['A']) - float(pr['p_min'])) / dp * 100.0,
+        'gain': span / (float(pr['k']) * float(pr['x_max'])),
+    }
