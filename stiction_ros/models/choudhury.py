@@ -17,6 +17,7 @@ then turns back must still overcome S.
 import math
 
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.breakaway import breakaway
 from stiction_ros.models.characteristics import (
     apply_characteristic, characteristic_code, CHARACTERISTICS, invert_characteristic,
     ma_to_percent, percent_to_ma, UNITS)
@@ -93,16 +94,9 @@ def choudhury_logic(x, st, S, J):
             st[_STUCK] = 1.0
             st[_XSS] = st[_XPREV]
         if st[_STUCK] == 1.0:
-            d = st[_DIR]
-            rel = x - st[_XSS]
-            if d == 0.0:
-                if abs(rel) > 0.5 * (S + J):
-                    st[_DIR] = math.copysign(1.0, rel)
-                    st[_STUCK] = 0.0
-            elif -d * rel > S:
-                st[_DIR] = -d
-                st[_STUCK] = 0.0
-            elif d * rel > J:
+            d = breakaway(st[_DIR], x - st[_XSS], S, J)
+            if d != 0.0:
+                st[_DIR] = d
                 st[_STUCK] = 0.0
         if st[_STUCK] == 0.0:
             pos = x - st[_DIR] * fd

@@ -8,9 +8,8 @@ kinetic band ``fd = (S - J) / 2``.  An optional first-order air-chamber lag
 the friction logic, as Kano proposed for noisy controller outputs.
 """
 
-import math
-
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.breakaway import breakaway
 from stiction_ros.models.lags import first_order_pole
 
 # state layout: position, u(k-1), u(k-2), u_s, resting flag, direction,
@@ -45,7 +44,6 @@ class Kano(ValveModel):
 def kano_kernel(u, y, st, S, J, a):
     """Advance Kano's model over ``u``, writing ``y`` and updating ``st`` in place."""
     fd = 0.5 * (S - J)
-    fs = 0.5 * (S + J)
     for k in range(len(u)):
         uf = a * st[_UF] + (1.0 - a) * u[k]
         st[_UF] = uf
@@ -57,16 +55,9 @@ def kano_kernel(u, y, st, S, J, a):
             st[_US] = u1
             st[_STP] = 1.0
         if st[_STP] == 1.0:
-            d = st[_D]
-            rel = uk - st[_US]
-            if d == 0.0:
-                if abs(rel) > fs:
-                    st[_D] = math.copysign(1.0, rel)
-                    st[_STP] = 0.0
-            elif -d * rel > S:
-                st[_D] = -d
-                st[_STP] = 0.0
-            elif d * rel > J:
+            d = breakaway(st[_D], uk - st[_US], S, J)
+            if d != 0.0:
+                st[_D] = d
                 st[_STP] = 0.0
         if st[_STP] == 0.0:
             yk = uk - st[_D] * fd
