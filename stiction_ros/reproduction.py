@@ -106,7 +106,7 @@ def run_study(config, out_dir, progress=print):
     progress('physical valve under a slow sinusoid ...')
     physical = [physical_equivalent(fig_dir, period=p, tau_ip=tau)
                 for p, tau in ((2000.0, 0.0), (200.0, 0.0), (200.0, 3.571))]
-    return {'config': str(config), 'cases': cases, 'physical': physical}
+    return {'config': Path(config).name, 'cases': cases, 'physical': physical}
 
 
 def _f(x, fmt='.1f'):
