@@ -15,7 +15,7 @@ from stiction_ros.models import MODELS
 import yaml
 
 TOP = {'name', 'description', 'sample_time', 'duration', 'plant', 'controller', 'valve',
-       'noise', 'cases', 'expected'}
+       'noise', 'cases'}
 PLANT = {'num', 'den', 'delay', 'mv0', 'pv0', 'disturbance_steps'}
 CONTROLLER = {'mode', 'Kc', 'Ti', 'Td', 'N', 'op_min', 'op_max', 'bias', 'action', 'setpoint',
               'op'}
