@@ -50,16 +50,7 @@ def controller_response(cfg, z):
 
 def plant_response(cfg, z):
     """Return the discretised plant's response P(z) from MV to PV, dead time included."""
-    z = np.asarray(z, dtype=complex)
-    p = build_plant(cfg)
-    phi, g0, g1, c, d, m = p._phi, p._g0, p._g1, p._c, p._d, p._m
-    out = np.empty(len(z), dtype=complex)
-    eye = np.eye(phi.shape[0])
-    for i, zi in enumerate(z):
-        x = np.linalg.solve(zi * eye - phi, g0 + g1 / zi)
-        out[i] = (c @ x) * zi ** (-m)
-    d_delay = m + 1 if p._fractional or m == 0 else m
-    return out + d * z ** (-d_delay)
+    return build_plant(cfg).frequency_response(z)
 
 
 def loop_response(cfg, w):

@@ -141,6 +141,18 @@ class TransferFunctionPlant:
         self._last = u
         self.time += self.sample_time
 
+    def frequency_response(self, z):
+        """Return P(z) from MV to PV of the sampled plant, dead time included."""
+        z = np.atleast_1d(np.asarray(z, dtype=complex))
+        eye = np.eye(self._phi.shape[0])
+        out = np.empty(len(z), dtype=complex)
+        for i, zi in enumerate(z):
+            x = np.linalg.solve(zi * eye - self._phi, self._g0 + self._g1 / zi)
+            out[i] = (self._c @ x) * zi ** (-self._m)
+        # the feedthrough sees the same held input as output() does
+        d_delay = self._m + 1 if self._fractional or self._m == 0 else self._m
+        return out + self._d * z ** (-d_delay)
+
     def simulate(self, mv, noisy=True):
         """Reset and return PV for each sample of the MV array (PV read before MV applies)."""
         self.reset()

@@ -61,12 +61,18 @@ class Sine:
         return self.offset + self.amplitude * math.sin(2 * math.pi * t / self.period + self.phase)
 
 
+def triangle_wave(phase):
+    """Return a unit triangle wave in step with ``sin(phase)``: 0 at 0, 1 at pi/2."""
+    x = (np.asarray(phase) / (2 * np.pi) + 0.25) % 1.0
+    return 1.0 - 4.0 * np.abs(x - 0.5)
+
+
 class Triangle(Sine):
     """A symmetric triangle wave with the same parameters as :class:`Sine`."""
 
     def __call__(self, t):
-        x = (t / self.period + self.phase / (2 * math.pi) + 0.25) % 1.0
-        return self.offset + self.amplitude * (1.0 - 4.0 * abs(x - 0.5))
+        return self.offset + self.amplitude * float(
+            triangle_wave(2 * math.pi * t / self.period + self.phase))
 
 
 class RandomWalk:

@@ -10,10 +10,7 @@ which fits better.
 
 import numpy as np
 
-
-def _triangle(phase):
-    x = (phase / (2 * np.pi) + 0.25) % 1.0
-    return 1.0 - 4.0 * np.abs(x - 0.5)
+from stiction_ros.sources import triangle_wave
 
 
 def shape_fit(x, period, sample_time, phases=180):
@@ -29,7 +26,7 @@ def shape_fit(x, period, sample_time, phases=180):
     if var == 0.0:
         return {'sine_residual': 0.0, 'triangle_residual': 0.0, 'ratio': 1.0}
     best = {}
-    for name, shape in (('sine', np.sin), ('triangle', _triangle)):
+    for name, shape in (('sine', np.sin), ('triangle', triangle_wave)):
         lowest = np.inf
         for phi in np.linspace(0, 2 * np.pi, phases, endpoint=False):
             basis = np.column_stack([shape(2 * np.pi * t / period + phi), np.ones_like(t)])

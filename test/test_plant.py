@@ -66,3 +66,18 @@ def test_noise_and_disturbance():
 def test_invalid_plants_are_rejected_with_the_reason(num, den, match):
     with pytest.raises(PlantError, match=match):
         TransferFunctionPlant(num, den)
+
+
+@pytest.mark.parametrize('delay', [10.0, 2.5])
+def test_frequency_response_matches_simulated_steady_state_sinusoid(delay):
+    ts, w = 1.0, 2 * math.pi / 40.0
+    p = TransferFunctionPlant([3.0], [10.0, 1.0], delay=delay, sample_time=ts, mv0=0.0)
+    k = np.arange(2000)
+    pv = p.simulate(np.cos(w * k * ts))
+    tail = k >= 1000
+    # fit the steady state to a cos + b sin, i.e. Re(P e^{jwk})
+    basis = np.column_stack([np.cos(w * k[tail]), -np.sin(w * k[tail])])
+    (re, im), *_ = np.linalg.lstsq(basis, pv[tail], rcond=None)
+    expect = p.frequency_response(np.exp(1j * w * ts))[0]
+    assert complex(re, im) == pytest.approx(expect, abs=1e-9)
+    assert p.frequency_response(1.0)[0] == pytest.approx(3.0)
