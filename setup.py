@@ -16,7 +16,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap'],
     zip_safe=True,
     maintainer='stiction_ros developers',
     maintainer_email='dev@stiction-ros.invalid',
@@ -27,6 +27,14 @@ setup(
         'console_scripts': [
             'stiction-sim = stiction_ros.cli.sim:main',
             'stiction-study = stiction_ros.cli.study:main',
+            'stiction-bag = stiction_ros.cli.bag:main',
+            # Node executables, as `ros2 run stiction_ros <name>` finds them.
+            'controller = stiction_ros.nodes.controller_node:main',
+            'valve = stiction_ros.nodes.valve_node:main',
+            'plant = stiction_ros.nodes.plant_node:main',
+            'recorder = stiction_ros.nodes.recorder_node:main',
+            'sim_clock = stiction_ros.nodes.sim_clock_node:main',
+            'loop = stiction_ros.cli.loop:main',
         ],
     },
 )

@@ -1,0 +1,197 @@
+"""
+``loop``: bring up a whole loop from one YAML file as separate node processes.
+
+For machines without ``ros2 launch`` (``launch/loop.launch.py`` does the same
+on a ROS install).  Starts ``plant``, ``controller`` and ``valve`` (and the
+``recorder`` with ``--record``, and a ``sim_clock`` with ``--rtf``), waits
+for the run to end, stops every node with SIGINT so the bag is finalised,
+and prints a summary: messages recorded, limit cycle live vs offline.
+
+Examples::
+
+    loop config/concentration_loop.yaml --case undershoot --rtf 100 --record out/bag
+    loop config/concentration_loop.yaml --namespace /loop2 --duration 600   # real time
+    loop config/concentration_loop.yaml --case overshoot --write-params overshoot.params.yaml
+
+Node logs go to ``--logs`` (default: next to the bag, or a temporary directory).
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+from stiction_ros.bag.reader import BagReadError, read_bag
+from stiction_ros.cli.sim import parse_set
+from stiction_ros.live_summary import format_summary, summarise
+from stiction_ros.loop_config import ConfigError, load_loop
+from stiction_ros.ros_params import loop_extras, LOOP_NODES, params_file
+
+MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'valve_node',
+           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
+
+
+class LoopError(RuntimeError):
+    """The loop could not run; the message says which node and why."""
+
+
+def node_command(name, namespace, params_path, extra=()):
+    """Return the argv that starts node ``name`` with the given parameter file."""
+    cmd = [sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--ros-args',
+           '--params-file', str(params_path)]
+    if namespace:
+        cmd += ['-r', f'__ns:={namespace}']
+    return cmd + list(extra)
+
+
+class Processes:
+    """The node processes of one loop, with their logs."""
+
+    def __init__(self, log_dir):
+        self.log_dir = Path(log_dir)
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.procs = {}
+
+    def start(self, name, cmd, env):
+        log = open(self.log_dir / f'{name}.log', 'wb')
+        self.procs[name] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                             start_new_session=True), log)
+
+    def failed(self):
+        """Return the name of a node that has exited with an error, or None."""
+        for name, (p, _) in self.procs.items():
+            if p.poll() is not None and p.returncode != 0:
+                return name
+        return None
+
+    def tail(self, name, lines=8):
+        """Return the last lines of a node's log."""
+        text = (self.log_dir / f'{name}.log').read_text(errors='replace').splitlines()
+        return '\n'.join('    ' + x for x in text[-lines:])
+
+    def stop(self, names, timeout=10.0):
+        """SIGINT the named nodes and wait; SIGKILL what does not exit in time."""
+        for name in names:
+            if name in self.procs and self.procs[name][0].poll() is None:
+                self.procs[name][0].send_signal(signal.SIGINT)
+        deadline = time.monotonic() + timeout
+        for name in names:
+            if name not in self.procs:
+                continue
+            p, log = self.procs[name]
+            try:
+                p.wait(max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+            log.close()
+
+
+def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=None,
+             progress=None):
+    """
+    Run the loop; return the bag path (or None) after every node has stopped.
+
+    ``rtf`` > 0 runs on a ``/clock`` at that real-time factor (else wall
+    time).  Raises :class:`LoopError` when a node fails.
+    """
+    ts = float(cfg['sample_time'])
+    duration = float(duration if duration is not None else cfg['duration'])
+    work = Path(log_dir or tempfile.mkdtemp(prefix='stiction_loop_'))
+    work.mkdir(parents=True, exist_ok=True)
+    sim = bool(rtf)
+    if record:
+        record = Path(record).resolve()
+        if record.exists() and any(record.iterdir()):
+            raise LoopError(f'{record}: already exists and is not empty; choose a new bag '
+                            'directory (nothing is overwritten)')
+    extra = loop_extras(cfg, rtf=rtf, record=record, duration=duration)
+    params = work / 'loop.params.yaml'
+    params.write_text(params_file(cfg, namespace, extra), encoding='utf-8')
+    env = dict(os.environ)
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    procs = Processes(work)
+    sim_arg = ['-p', f'use_sim_time:={"true" if sim else "false"}']
+    try:
+        if record:
+            procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
+        for name in LOOP_NODES:
+            procs.start(name, node_command(name, namespace, params, sim_arg), env)
+        end = None if sim else time.monotonic() + duration + 0.75 * ts
+        if sim:
+            procs.start('sim_clock', node_command('sim_clock', namespace, params), env)
+        while True:
+            time.sleep(0.1)
+            bad = procs.failed()
+            if bad is not None:
+                raise LoopError(f'node {bad} stopped (exit {procs.procs[bad][0].returncode}); '
+                                f'its log {work / (bad + ".log")} ends:\n{procs.tail(bad)}')
+            if sim and procs.procs['sim_clock'][0].poll() == 0:
+                break
+            if end is not None and time.monotonic() >= end:
+                break
+            if progress is not None:
+                progress()
+        time.sleep(0.5)
+    finally:
+        procs.stop(['sim_clock', 'controller', 'valve', 'plant'])
+        procs.stop(['recorder'], timeout=30.0)
+    return record
+
+
+def main(argv=None):
+    """Run the command; return the process exit code."""
+    ap = argparse.ArgumentParser(prog='loop', description=__doc__.split('\n')[1])
+    ap.add_argument('config', help='loop description (YAML), e.g. config/concentration_loop.yaml')
+    ap.add_argument('--case', help='a case from the "cases" section of the file')
+    ap.add_argument('--set', action='append', metavar='KEY=VALUE',
+                    help='override a setting, e.g. valve.S=7 (repeatable)')
+    ap.add_argument('--namespace', default='',
+                    help='namespace of the nodes and topics of the loop')
+    ap.add_argument('--duration', type=float, help='seconds of loop time (default: from the file)')
+    ap.add_argument('--rtf', type=float, default=0.0,
+                    help='run on a /clock at this real-time factor (default: wall time)')
+    ap.add_argument('--record', metavar='DIR', help='record sp, op, mv, pv to this bag directory')
+    ap.add_argument('--logs', metavar='DIR', help='directory for the node logs')
+    ap.add_argument('--json', metavar='FILE', help='write the summary as JSON')
+    ap.add_argument('--write-params', metavar='FILE',
+                    help='only write the ROS parameter file of the loop nodes, and exit')
+    args = ap.parse_args(argv)
+    try:
+        cfg = load_loop(args.config, args.case, parse_set(args.set))
+        if args.write_params:
+            Path(args.write_params).write_text(params_file(cfg, args.namespace), encoding='utf-8')
+            print(f'loop: wrote {args.write_params}', file=sys.stderr)
+            return 0
+        if args.rtf < 0:
+            raise ConfigError('--rtf must be positive')
+        logs = args.logs or (str(Path(args.record).resolve()) + '.logs' if args.record else None)
+        t0 = time.monotonic()
+        mode = f'rtf {args.rtf:g}' if args.rtf else 'wall time'
+        print(f'loop: {cfg.get("name", "loop")} {cfg.get("case") or ""} on {mode}; '
+              f'node logs in {logs or "a temporary directory"}', file=sys.stderr)
+        bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs)
+        print(f'loop: ran in {time.monotonic() - t0:.1f} s', file=sys.stderr)
+        if bag is not None:
+            summary = summarise(read_bag(bag), cfg)
+            summary['bag'] = str(bag)
+            print(format_summary(summary))
+            print(f'bag: {bag}')
+            if args.json:
+                Path(args.json).write_text(json.dumps(summary, indent=2), encoding='utf-8')
+    except (ConfigError, LoopError, BagReadError, ValueError) as err:
+        print(f'loop: error: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('loop: interrupted; nodes stopped, bag finalised', file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,92 @@
+"""
+``plant`` node: subscribes ``mv``, publishes ``pv`` through a transfer function with dead time.
+
+The process ``num(s)/den(s) e^{-delay s}`` is discretised exactly (zero-order
+hold) at the loop's sample time.  Each sample the plant first advances over
+the MV it held during the last sample, then publishes PV: the same order as
+the offline simulator.  Structure (``num``, ``den``, ``delay``, operating
+point) is fixed for a run; ``load`` and ``noise_std`` can change live.
+"""
+
+import sys
+
+from std_msgs.msg import Float64
+from stiction_ros.nodes.params import Param
+from stiction_ros.nodes.run import run
+from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
+from stiction_ros.plant import PlantError, TransferFunctionPlant
+import yaml
+
+# Samples the plant catches up at once after the clock skipped ahead.
+MAX_CATCH_UP = 10000
+
+
+class PlantNode(SampledNode):
+    """The process: one exact ZOH step per sample on the latest MV."""
+
+    def __init__(self):
+        fixed = ' Fixed for the run (the plant state depends on it).'
+        super().__init__('plant', 0.25, [
+            Param('num', [3.0], 'Numerator coefficients of the transfer function, '
+                  'highest power of s first.' + fixed, read_only=True),
+            Param('den', [10.0, 1.0], 'Denominator coefficients, highest power of s first.'
+                  + fixed, read_only=True),
+            Param('delay', 10.0, 'Dead time, s.' + fixed, 0.0, 1e6, read_only=True),
+            Param('mv0', 50.0, 'MV at the operating point, %.' + fixed, -1e6, 1e6,
+                  read_only=True),
+            Param('pv0', 0.0, 'PV at the operating point.' + fixed, -1e12, 1e12,
+                  read_only=True),
+            Param('disturbance_steps', '[]', 'Load steps on PV as YAML [[time_s, size], ...].'
+                  + fixed, read_only=True),
+            Param('seed', 0, 'Seed of the measurement noise.' + fixed, 0, 2**31 - 1,
+                  read_only=True),
+            Param('noise_std', 0.0, 'Standard deviation of the PV measurement noise.',
+                  0.0, 1e6),
+            Param('load', 0.0, 'Constant load added to PV, from the next sample on.',
+                  -1e12, 1e12),
+        ])
+        v = self.values
+        try:
+            steps = yaml.safe_load(v['disturbance_steps']) or []
+            self.plant = TransferFunctionPlant(
+                list(v['num']), list(v['den']), delay=v['delay'], sample_time=self.sample_time,
+                mv0=v['mv0'], pv0=v['pv0'], noise_std=v['noise_std'], disturbance_steps=steps,
+                seed=v['seed'])
+        except (PlantError, ValueError, TypeError, yaml.YAMLError) as err:
+            raise StartupError(f'plant: {err}') from None
+        self.mv = None
+        self._k = None
+        self.pub = self.create_publisher(Float64, 'pv', DATA_QOS)
+        self.create_subscription(Float64, 'mv', self._on_mv, DATA_QOS)
+        self.start()
+        self.get_logger().info(
+            f'{list(v["num"])}/{list(v["den"])} e^-{v["delay"]}s at {self.sample_time} s')
+
+    def apply(self, changes):
+        """Take a new noise level; ``load`` is read each sample."""
+        if 'noise_std' in changes:
+            self.plant.noise_std = changes['noise_std']
+
+    def _on_mv(self, msg):
+        if self.accept('mv', msg.data):
+            self.mv = msg.data
+
+    def on_sample(self, k, t):
+        """Advance over the held MV, then publish PV for sample ``k``."""
+        if self._k is not None:
+            held = self.mv if self.mv is not None else self.plant.mv0
+            for _ in range(min(max(k - self._k, 0), MAX_CATCH_UP)):
+                self.plant.update(held)
+        self._k = k
+        self.plant.time = t
+        pv = self.plant.output() + self.values['load']
+        self.pub.publish(Float64(data=pv))
+
+
+def main(args=None):
+    """Run the plant node."""
+    return run(PlantNode, args, 'plant')
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,202 @@
+"""
+``recorder`` node: records topics to a rosbag2 bag directory (MCAP + metadata.yaml).
+
+Like ``ros2 bag record -s mcap``: each topic is subscribed as soon as a
+publisher of it appears, with the publisher's type, and the CDR bytes are
+stored exactly as received (``raw=True``), with the offered QoS and type
+hash in the channel metadata.  The log time is the time of reception and the
+publish time the sender's source timestamp, as rosbag2 does.
+
+Under ``use_sim_time`` the log time is the sim time in force when the
+message was *sent*: its DDS source stamp mapped through the source stamps of
+the ``/clock`` messages.  Stamping with the recorder's clock when it gets
+round to a message puts messages of an accelerated run up to a sample late;
+arrival stamps still jitter by a quarter sample.  Send stamps are exact when
+the clock runs in lockstep (it publishes the next tick only after it has
+received the message), and need sender and recorder on one machine clock.
+A message sent after the newest ``/clock`` the recorder has seen waits in a
+small queue until the next ``/clock`` arrives, since that one may have been
+sent before it.
+
+The open chunk goes to disk every ``flush_period`` wall seconds, so a
+SIGKILL loses at most that much; SIGINT/SIGTERM finish the file.
+
+Example::
+
+    ros2 run stiction_ros recorder --ros-args -p output:=run1 -p topics:="['op', 'mv']"
+"""
+
+import re
+import sys
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as RosClock
+from stiction_ros.bag.metadata import INFINITE
+from stiction_ros.bag.writer import BagError, BagWriter, COMPRESSION
+from stiction_ros.nodes.params import check_choices, declare, Param
+from stiction_ros.nodes.run import run
+from stiction_ros.nodes.sampled import StartupError
+
+_TYPE_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z][A-Za-z0-9_]*$')
+
+
+def _duration(d):
+    ns = d.nanoseconds
+    if ns <= 0 or ns >= 9223372036854775807:
+        return dict(INFINITE)
+    sec, nsec = divmod(ns, 10**9)
+    return {'sec': int(sec), 'nsec': int(nsec)}
+
+
+def qos_dict(qos):
+    """Return a publisher's QoS as rosbag2 version 9 writes it."""
+    def name(policy):
+        return policy.name.lower() if policy is not None else 'unknown'
+    return {
+        'history': name(qos.history), 'depth': int(qos.depth),
+        'reliability': name(qos.reliability), 'durability': name(qos.durability),
+        'deadline': _duration(qos.deadline), 'lifespan': _duration(qos.lifespan),
+        'liveliness': name(qos.liveliness),
+        'liveliness_lease_duration': _duration(qos.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(qos.avoid_ros_namespace_conventions),
+    }
+
+
+class RecorderNode(Node):
+    """Writes every message of the chosen topics to one bag."""
+
+    def __init__(self):
+        super().__init__('recorder')
+        self.specs = [
+            Param('output', '', 'Bag directory to create (must not exist or be empty).',
+                  read_only=True),
+            Param('topics', ['sp', 'op', 'mv', 'pv'], 'Topics to record; relative names '
+                  "resolve in the recorder's namespace.", read_only=True),
+            Param('compression', 'zstd', 'Chunk compression.', choices=tuple(COMPRESSION),
+                  read_only=True),
+            Param('chunk_size', 262144, 'Chunk size before compression, bytes.', 1024,
+                  2**31 - 1, read_only=True),
+            Param('flush_period', 1.0, 'Wall seconds between writes of the open chunk: the '
+                  'most a SIGKILL can lose.', 0.01, 3600.0, read_only=True),
+            Param('depth', 1000, 'Subscription queue depth (reliable): how far the recorder '
+                  'may fall behind without losing messages.', 1, 1000000, read_only=True),
+        ]
+        v = self.values = declare(self, self.specs)
+        reason = check_choices(self.specs, v)
+        if reason:
+            raise StartupError(reason)
+        if not v['output']:
+            raise StartupError('recorder: set the bag directory with -p output:=DIR')
+        try:
+            self.writer = BagWriter(v['output'], compression=v['compression'],
+                                    chunk_size=v['chunk_size'])
+        except BagError as err:
+            raise StartupError(str(err)) from None
+        self.wanted = [self.resolve_topic_name(t) for t in v['topics'] if t]
+        self._clock_wall, self._clock_sim, self._pending = [], [], []
+        self._sim = self.get_parameter('use_sim_time').value
+        if self._sim:
+            self.create_subscription(RosClock, '/clock', self._on_clock, QoSProfile(
+                depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        self.subs = {}
+        self._unflushed = 0
+        wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(0.05, self._discover, clock=wall)
+        self.create_timer(v['flush_period'], self._flush, clock=wall)
+        self._discover()
+        self.get_logger().info(f'recording {self.wanted} to {v["output"]}')
+
+    def _discover(self):
+        for name in self.wanted:
+            if name in self.subs:
+                continue
+            pubs = self.get_publishers_info_by_topic(name)
+            if not pubs:
+                continue
+            types = sorted({p.topic_type for p in pubs})
+            if len(types) > 1:
+                self.get_logger().error(f'{name}: publishers disagree on the type {types}; '
+                                        'not recorded', throttle_duration_sec=10.0)
+                continue
+            try:
+                self.writer.add_topic(name, types[0], [qos_dict(p.qos_profile) for p in pubs],
+                                      str(pubs[0].topic_type_hash))
+                msg_type = _import_type(types[0])
+            except (LookupError, ImportError, AttributeError) as err:
+                self.get_logger().error(f'{name}: cannot record type {types[0]}: {err}',
+                                        throttle_duration_sec=10.0)
+                continue
+            qos = QoSProfile(depth=self.values['depth'], history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE)
+            if all(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs):
+                qos.reliability = ReliabilityPolicy.BEST_EFFORT
+            self.subs[name] = self.create_subscription(
+                msg_type, name, self._callback(name), qos, raw=True)
+            self.get_logger().info(f'subscribed to {name} [{types[0]}]')
+
+    def _on_clock(self, msg, info):
+        self._clock_wall.append(info['source_timestamp'])
+        self._clock_sim.append(msg.clock.sec * 10**9 + msg.clock.nanosec)
+        if len(self._clock_wall) > 20000:
+            del self._clock_wall[:10000], self._clock_sim[:10000]
+        while self._pending and self._pending[0][2] < self._clock_wall[-1]:
+            self._write(*self._pending.pop(0))
+
+    def _sim_time_at(self, sent):
+        walls = self._clock_wall
+        i = len(walls) - 1
+        while i >= 0 and walls[i] > sent:
+            i -= 1
+        return self._clock_sim[i] if i >= 0 else self.get_clock().now().nanoseconds
+
+    def _write(self, name, data, sent):
+        self.writer.write(name, data, self._sim_time_at(sent), sent)
+        self._unflushed += 1
+
+    def _callback(self, name):
+        def on_message(data, info):
+            sent = info['source_timestamp']
+            if not self._sim:
+                self.writer.write(name, data, info['received_timestamp'], sent)
+                self._unflushed += 1
+            elif self._pending or not self._clock_wall or sent >= self._clock_wall[-1]:
+                self._pending.append((name, data, sent))
+            else:
+                self._write(name, data, sent)
+        return on_message
+
+    def _flush(self):
+        if self._unflushed:
+            self.writer.flush_chunk()
+            self._unflushed = 0
+
+    def close(self):
+        """Finish the bag; called on shutdown (SIGINT/SIGTERM)."""
+        for item in self._pending:
+            self._write(*item)
+        self._pending = []
+        self.writer.close()
+        counts = ', '.join(f'{n}: {t["count"]}' for n, t in self.writer.topics.items())
+        print(f'recorder: wrote {self.writer.message_count} messages to '
+              f'{self.writer.directory} ({counts})', file=sys.stderr)
+
+
+def _import_type(type_name):
+    # The type name comes from the graph: import only what looks like pkg/msg/Type.
+    if not _TYPE_NAME.match(type_name):
+        raise ImportError(f'{type_name!r} is not a message type name')
+    pkg, kind, name = type_name.split('/')
+    module = __import__(f'{pkg}.{kind}', fromlist=[name])
+    return getattr(module, name)
+
+
+def main(args=None):
+    """Run the recorder until SIGINT/SIGTERM."""
+    return run(RecorderNode, args, 'recorder')
+
+
+if __name__ == '__main__':
+    sys.exit(main())

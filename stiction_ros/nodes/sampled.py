@@ -1,0 +1,131 @@
+"""
+Base of the loop nodes: one action per sample, at a fixed phase of the sample.
+
+A sampled control system runs its blocks in a fixed order within each scan,
+and the offline simulator does the same: read PV, compute OP, move the valve,
+hold MV while the plant advances.  Separate processes woken by the same
+clock tick would run in a random order, adding 0-2 samples of delay that
+change the limit cycle (2 samples lengthen the overshoot case's period by
+6 %).  So each node acts at its ``phase`` of the sample: after the sample
+instant ``k Ts`` the plant publishes PV at 1/4, the controller OP at 1/2 and
+the valve MV at 3/4 of the sample, and every message has a quarter sample
+to arrive.  All values of sample ``k`` are published within
+``[k Ts, (k+1) Ts)``, so ``floor(t / Ts)`` of any recorded time stamp is
+its sample number.
+
+A timer runs at a quarter of ``sample_time``; the node acts in the first
+quarter-tick of each sample that is at or past its phase, so a node started
+late, or a clock that skips ticks, still acts once per sample.  With
+``use_sim_time`` the clock source must step in quarter samples (the loop
+launcher sets this); on wall time the timer is started on a quarter boundary
+of the system clock so that all processes share the same grid.
+"""
+
+import math
+import time
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stiction_ros.nodes.params import check_choices, declare, Param
+
+SLOTS = 4
+# Reliable with room for a few seconds of backlog: a slow subscriber (the
+# recorder) must not lose samples, yet the newest value is what a loop uses.
+DATA_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE)
+
+
+class StartupError(RuntimeError):
+    """The node cannot start with the parameters it was given; the message says why."""
+
+
+class SampledNode(Node):
+    """A node that calls :meth:`on_sample` once per sample at its phase."""
+
+    def __init__(self, name, phase, params):
+        super().__init__(name)
+        common = [
+            Param('sample_time', 1.0, 'Sample time of the loop, s. Fixed for the run.',
+                  1e-4, 1e4, read_only=True),
+            Param('phase', float(phase),
+                  'When in each sample this node acts, as a fraction of sample_time '
+                  '(plant 0.25, controller 0.5, valve 0.75). Fixed for the run.',
+                  0.0, 0.75, read_only=True, step=0.25),
+        ]
+        self.param_specs = common + list(params)
+        self.values = declare(self, self.param_specs)
+        self.sample_time = self.values['sample_time']
+        self._slot = int(round(self.values['phase'] * SLOTS))
+        self._ts_ns = int(round(self.sample_time * 1e9))
+        self.last_k = None
+        self.samples = 0
+        self.rejected = 0
+
+    def start(self):
+        """Register the parameter callbacks and start the sample timer."""
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._post_set)
+        if not self.get_parameter('use_sim_time').value:
+            # Start on a quarter boundary of the system clock: every process on
+            # the machine then shares the same grid of phases.
+            quarter = self._ts_ns / SLOTS
+            wait = (quarter - time.time_ns() % quarter) / 1e9
+            time.sleep(wait + 1e-4)
+        self._timer = self.create_timer(self.sample_time / SLOTS, self._tick)
+
+    def _tick(self):
+        now = self.get_clock().now().nanoseconds
+        n = math.floor(now * SLOTS / self._ts_ns + 1e-6)
+        k, slot = divmod(n, SLOTS)
+        if self.last_k is not None and k < self.last_k:
+            self.get_logger().warning(
+                f'clock went back from sample {self.last_k} to {k}; following it')
+            self.last_k = k - 1
+        if slot < self._slot or k == self.last_k:
+            return
+        self.last_k = k
+        self.samples += 1
+        self.on_sample(k, k * self.sample_time)
+
+    def accept(self, topic, value):
+        """Return True for a finite input; count and warn (throttled) otherwise."""
+        if math.isfinite(value):
+            return True
+        self.rejected += 1
+        self.get_logger().warning(
+            f'ignored non-finite {topic} ({value}); holding the last good value '
+            f'({self.rejected} rejected so far)', throttle_duration_sec=5.0)
+        return False
+
+    def on_sample(self, k, t):
+        """Act for sample ``k`` taken at time ``t`` (s)."""
+        raise NotImplementedError
+
+    # -- parameters: validate everything first, then apply ----------------------
+    def _on_set(self, params):
+        changes = {p.name: p.value for p in params if p.name in self.values}
+        reason = check_choices(self.param_specs, changes)
+        if reason is None:
+            merged = dict(self.values)
+            merged.update(changes)
+            reason = self.check(merged, changes)
+        if reason is not None:
+            self.get_logger().warning(f'rejected {sorted(changes)}: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _post_set(self, params):
+        changes = {p.name: p.value for p in params if p.name in self.values}
+        if changes:
+            self.values.update(changes)
+            self.apply(changes)
+            self.get_logger().info(
+                'set ' + ', '.join(f'{k}={v!r}' for k, v in sorted(changes.items())))
+
+    def check(self, values, changes):
+        """Return why ``values`` (with ``changes`` applied) are invalid, or None."""
+        return None
+
+    def apply(self, changes):
+        """Apply validated ``changes``; they take effect at the next sample."""

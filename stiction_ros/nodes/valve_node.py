@@ -1,0 +1,118 @@
+"""
+``valve`` node: subscribes ``op``, publishes ``mv`` through the selected stiction model.
+
+Every model's parameters are declared on the node (``S`` and ``J`` are shared
+by the data-driven models; the physical model's are SI).  A change is
+validated by building the model it would give, so an impossible combination
+is rejected with the model's own reason and nothing changes.  Switching
+``model`` is bumpless: the new model starts at rest at the current position.
+
+Example::
+
+    ros2 run stiction_ros valve --ros-args -p model:=kano -p S:=5.0 -p J:=2.0
+    ros2 param set /valve S 7.0
+"""
+
+import sys
+
+from std_msgs.msg import Float64
+from stiction_ros.models import create, ModelError, MODELS
+from stiction_ros.nodes.params import Param
+from stiction_ros.nodes.run import run
+from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
+
+
+def model_params():
+    """Return one :class:`Param` per model parameter name, over all models."""
+    users = {}
+    for model, cls in MODELS.items():
+        for name in cls.PARAMS:
+            if name != 'sample_time':
+                users.setdefault(name, []).append(model)
+    out = []
+    for name, models in users.items():
+        default, low, high, desc = MODELS[models[0]].PARAMS[name]
+        text = f'{desc} ({", ".join(models)})'
+        if isinstance(low, str):
+            choices = tuple(high) if not isinstance(default, bool) else None
+            out.append(Param(name, default, text, choices=choices))
+        else:
+            out.append(Param(name, float(default), text, low, high))
+    return out
+
+
+class ValveNode(SampledNode):
+    """The valve: one model step per sample on the latest OP."""
+
+    def __init__(self):
+        self.model_specs = model_params()
+        super().__init__('valve', 0.75, [
+            Param('model', 'choudhury', 'Stiction model; switching is bumpless.',
+                  choices=tuple(MODELS)),
+            Param('initial_position', 50.0,
+                  'Position the valve rests at before its first OP, % of travel. '
+                  'Used at start-up only.', 0.0, 100.0, read_only=True),
+        ] + self.model_specs)
+        reason = self.check(self.values, self.values)
+        if reason is not None:
+            raise StartupError(reason)
+        self.model = self._build(self.values['model'], self.values)
+        self.model.reset(y0=self.values['initial_position'])
+        self.op = None
+        self.pub = self.create_publisher(Float64, 'mv', DATA_QOS)
+        self.create_subscription(Float64, 'op', self._on_op, DATA_QOS)
+        self.start()
+        self.get_logger().info(f'{self.model!r} at {self.sample_time} s')
+
+    def _build(self, name, values):
+        cls = MODELS[name]
+        kwargs = {k: values[k] for k in cls.PARAMS if k in values}
+        if 'sample_time' in cls.PARAMS:
+            kwargs['sample_time'] = self.sample_time
+        return create(name, **kwargs)
+
+    def check(self, values, changes):
+        """Build every model the change touches; return the first model error."""
+        touched = {values['model']} if 'model' in changes else set()
+        touched |= {m for m, cls in MODELS.items() if set(changes) & set(cls.PARAMS)}
+        for name in sorted(touched):
+            try:
+                self._build(name, values)
+            except ModelError as err:
+                return str(err)
+        return None
+
+    def apply(self, changes):
+        """Rebuild on a model switch (starting where the valve is), else set parameters."""
+        name = self.values['model']
+        if 'model' in changes and name != self.model.name:
+            position = self.model.position
+            self.model = self._build(name, self.values)
+            self.model.reset(y0=position if position is not None
+                             else self.values['initial_position'])
+            return
+        mine = {k: v for k, v in changes.items() if k in self.model.PARAMS}
+        if mine:
+            self.model.set_params(**mine)
+
+    def _on_op(self, msg):
+        if self.accept('op', msg.data):
+            self.op = msg.data
+
+    def on_sample(self, k, t):
+        """Move the valve on the latest OP (or hold it before the first) and publish MV."""
+        if self.op is None:
+            position = self.model.position
+            mv = position if position is not None else self.values['initial_position']
+        else:
+            mv = self.model.step(self.op)
+        self.pub.publish(Float64(data=mv))
+
+
+def main(args=None):
+    """Run the valve node."""
+    return run(ValveNode, args, 'valve')
+
+
+if __name__ == '__main__':
+    sys.exit(main())
