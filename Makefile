@@ -6,12 +6,21 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo test lint bench colcon clean
+.PHONY: venv demo reproduce test lint bench colcon clean
+
+# The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
+# lockstep sim clock at 100x real time, recorded to out/demo_bag.
+DEMO_CASE ?= undershoot
 
 venv:
 	@bash tools/bootstrap.sh
 
 demo: venv
+	rm -rf out/demo_bag out/demo_bag.logs
+	$(PY) -m stiction_ros.cli.loop config/concentration_loop.yaml --case $(DEMO_CASE) \
+	  --rtf 100 --record out/demo_bag --json out/demo_summary.json
+
+reproduce: venv
 	$(PY) -m stiction_ros.cli.study --out docs
 
 test: venv

@@ -80,18 +80,24 @@ def format_summary(s):
     if 'samples' in s:
         lines.append(f'samples {s["samples"]["first"]}..{s["samples"]["last"]} '
                      f'at {s["sample_time"]} s')
-    lines.append(f'{"signal":6} {"period live":>12} {"offline":>8} {"amp live":>9} '
-                 f'{"offline":>8} {"max |diff|":>10} gaps')
+    lines.append(f'{"signal":6} {"period live":>12} {"offline":>8} {"error":>7} '
+                 f'{"amp live":>9} {"offline":>8} {"error":>7} {"max |diff|":>10} gaps')
     for name, e in s['signals'].items():
         lv, of = e['live'], e.get('offline', {})
         lines.append(
             f'{name:6} {_num(lv["period"] if lv["oscillating"] else None):>12} '
             f'{_num(of.get("period") if of.get("oscillating") else None):>8} '
+            f'{_pct(e.get("period_error")):>7} '
             f'{_num(lv["amplitude"]):>9} {_num(of.get("amplitude")):>8} '
+            f'{_pct(e.get("amplitude_error")):>7} '
             f'{_num(e.get("max_abs_difference"), 4):>10} {e["gaps"]}')
     for w in s['warnings']:
         lines.append(f'warning: {w}')
     return '\n'.join(lines)
+
+
+def _pct(x):
+    return '-' if x is None else f'{100 * x:+.1f}%'
 
 
 def _num(x, digits=2):

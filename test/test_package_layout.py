@@ -10,7 +10,8 @@ import xml.etree.ElementTree as ET
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = ('stiction-sim', 'stiction-study')
+EXECUTABLES = ('stiction-sim', 'stiction-study', 'stiction-bag', 'controller', 'valve', 'plant',
+               'recorder', 'sim_clock', 'loop')
 
 
 def test_package_xml_is_format_3_ament_python():
@@ -50,6 +51,8 @@ def test_colcon_build_gives_the_ament_layout(colcon_install):
     assert marker.is_file()
     assert (prefix / 'share/stiction_ros/package.xml').is_file()
     assert (prefix / 'share/stiction_ros/config/concentration_loop.yaml').is_file()
+    assert (prefix / 'share/stiction_ros/config/concentration_undershoot.params.yaml').is_file()
+    assert (prefix / 'share/stiction_ros/launch/loop.launch.py').is_file()
     for exe in EXECUTABLES:
         path = prefix / 'lib/stiction_ros' / exe
         assert path.is_file() and os.access(path, os.X_OK), path
@@ -73,3 +76,13 @@ def test_installed_executable_runs_as_ros2_run_would_find_it(colcon_install, tmp
     assert run.returncode == 0, run.stderr
     # and the code it ran is the installed copy, not the source tree
     assert out.read_text().startswith('t,sp,op,mv,pv')
+
+
+def test_installed_node_executable_starts_and_explains_a_bad_parameter(colcon_install):
+    site = next((colcon_install / 'lib').glob('python3*/site-packages'))
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(colcon_install), PYTHONPATH=str(site))
+    exe = colcon_install / 'lib/stiction_ros/valve'
+    run = subprocess.run([str(exe), '--ros-args', '-p', 'model:=kanoo'], env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2
+    assert "model = 'kanoo' is not one of" in run.stderr

@@ -21,7 +21,7 @@ from std_msgs.msg import Float64
 from stiction_ros.controller import PID
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
-from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
+from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
 from stiction_ros.sources import Constant, make_source, SourceError
 import yaml
 
@@ -66,9 +66,7 @@ class ControllerNode(SampledNode):
                   '{type: sine, offset: 50, amplitude: 10, period: 200}; empty: use op.'),
         ])
         v = self.values
-        reason = self.check(v, v)
-        if reason is not None:
-            raise StartupError(reason)
+        self.check_startup()
         self.pid = PID(sample_time=self.sample_time, bias=v['bias'],
                        **{k: v[k] for k in GAINS})
         self.sp_source = parse_source(v['setpoint_profile'], v['setpoint'], 'setpoint_profile')

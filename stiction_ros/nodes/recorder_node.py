@@ -7,7 +7,7 @@ stored exactly as received (``raw=True``), with the offered QoS and type
 hash in the channel metadata.  The log time is the time of reception and the
 publish time the sender's source timestamp, as rosbag2 does.
 
-Under ``use_sim_time`` the log time is the sim time in force when the
+Under ``use_sim_time`` both stamps are the sim time in force when the
 message was *sent*: its DDS source stamp mapped through the source stamps of
 the ``/clock`` messages.  Stamping with the recorder's clock when it gets
 round to a message puts messages of an accelerated run up to a sample late;
@@ -153,7 +153,10 @@ class RecorderNode(Node):
         return self._clock_sim[i] if i >= 0 else self.get_clock().now().nanoseconds
 
     def _write(self, name, data, sent):
-        self.writer.write(name, data, self._sim_time_at(sent), sent)
+        # Both stamps in sim time: the wall send stamp would be decades after
+        # the log time, which validators flag and no reader can relate.
+        t = self._sim_time_at(sent)
+        self.writer.write(name, data, t, t)
         self._unflushed += 1
 
     def _callback(self, name):

@@ -123,6 +123,13 @@ class SampledNode(Node):
             self.get_logger().info(
                 'set ' + ', '.join(f'{k}={v!r}' for k, v in sorted(changes.items())))
 
+    def check_startup(self):
+        """Raise StartupError if the values the node was started with are invalid."""
+        reason = check_choices(self.param_specs, self.values) or self.check(self.values,
+                                                                            self.values)
+        if reason is not None:
+            raise StartupError(reason)
+
     def check(self, values, changes):
         """Return why ``values`` (with ``changes`` applied) are invalid, or None."""
         return None

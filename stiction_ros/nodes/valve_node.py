@@ -19,7 +19,7 @@ from std_msgs.msg import Float64
 from stiction_ros.models import create, ModelError, MODELS
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
-from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
+from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
 
 
 def model_params():
@@ -53,9 +53,7 @@ class ValveNode(SampledNode):
                   'Position the valve rests at before its first OP, % of travel. '
                   'Used at start-up only.', 0.0, 100.0, read_only=True),
         ] + self.model_specs)
-        reason = self.check(self.values, self.values)
-        if reason is not None:
-            raise StartupError(reason)
+        self.check_startup()
         self.model = self._build(self.values['model'], self.values)
         self.model.reset(y0=self.values['initial_position'])
         self.op = None

@@ -1,0 +1,148 @@
+"""
+Helpers for tests with real nodes: node processes, and an in-test rclpy node.
+
+Node processes inherit the environment set in conftest.py (localhost
+discovery, this run's ROS_DOMAIN_ID).  The in-test node spins in a thread,
+so the test body can wait on conditions with plain polling.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from std_msgs.msg import Float64
+from stiction_ros.nodes.sampled import DATA_QOS
+
+MODULES = {'controller': 'controller_node', 'valve': 'valve_node', 'plant': 'plant_node',
+           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
+
+
+def start_node(name, params=None, namespace='', log_dir=None, extra=()):
+    """Start a node executable as its own process; return the Popen."""
+    cmd = [sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--ros-args']
+    for key, value in (params or {}).items():
+        cmd += ['-p', f'{key}:={_arg(value)}']
+    if namespace:
+        cmd += ['-r', f'__ns:={namespace}']
+    cmd += list(extra)
+    out = open(os.path.join(log_dir, f'{name}.log'), 'ab') if log_dir else subprocess.DEVNULL
+    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ))
+
+
+def _arg(value):
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (list, tuple)):
+        return '[' + ','.join(_arg(v) for v in value) + ']'
+    if isinstance(value, str):
+        return value
+    return repr(value)
+
+
+def stop(proc, sig=signal.SIGINT, timeout=15.0):
+    """Signal a node process and wait for it; return its exit code."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        return proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait()
+
+
+def wait_for(condition, timeout=20.0, what='condition'):
+    """Poll ``condition()`` until true; fail the test with ``what`` on timeout."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+
+
+class Probe:
+    """An rclpy node in the test: publish, collect and tune over real DDS."""
+
+    def __init__(self, name='probe'):
+        self.node = Node(name)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.received = {}
+        self.pubs = {}
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def listen(self, topic):
+        """Collect every Float64 on ``topic`` (with its arrival time) into ``received[topic]``."""
+        self.received[topic] = []
+
+        def on_msg(msg):
+            self.received[topic].append((time.monotonic(), msg.data))
+        self.node.create_subscription(Float64, topic, on_msg, DATA_QOS)
+
+    def values(self, topic):
+        """Return the values received on ``topic`` so far."""
+        return [v for _, v in list(self.received[topic])]
+
+    def publisher(self, topic):
+        """Return (and remember) a Float64 publisher on ``topic``."""
+        if topic not in self.pubs:
+            self.pubs[topic] = self.node.create_publisher(Float64, topic, DATA_QOS)
+        return self.pubs[topic]
+
+    def publish(self, topic, value):
+        """Publish one Float64."""
+        self.publisher(topic).publish(Float64(data=float(value)))
+
+    def params(self, node_name, timeout=20.0):
+        """Return a parameter client of ``node_name`` once its services are up."""
+        client = AsyncParameterClient(self.node, node_name)
+        assert client.wait_for_services(timeout), f'no parameter services on {node_name}'
+        return client
+
+    @staticmethod
+    def call(future, timeout=10.0):
+        """Wait for a service future (spun by the probe thread); return its result."""
+        end = time.monotonic() + timeout
+        while not future.done():
+            if time.monotonic() > end:
+                raise AssertionError('service call timed out')
+            time.sleep(0.01)
+        return future.result()
+
+    def set_params(self, client, atomically=False, **values):
+        """Set parameters through the standard service; return the SetParametersResult list."""
+        params = [Parameter(k, value=v) for k, v in values.items()]
+        if atomically:
+            return [self.call(client.set_parameters_atomically(params)).result]
+        return self.call(client.set_parameters(params)).results
+
+    def get_params(self, client, *names):
+        """Return the current values of parameters through the standard service."""
+        res = self.call(client.get_parameters(list(names)))
+        return [Parameter.from_parameter_msg(_named(n, v)).value
+                for n, v in zip(names, res.values)]
+
+    def close(self):
+        """Stop spinning and destroy the node."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+def _named(name, value):
+    from rcl_interfaces.msg import Parameter as ParamMsg
+    return ParamMsg(name=name, value=value)
+
+
+def init():
+    """Initialise rclpy once for the test session."""
+    if not rclpy.ok():
+        rclpy.init()
