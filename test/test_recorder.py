@@ -135,3 +135,13 @@ def test_an_unwritable_output_is_an_error_at_start(tmp_path):
     assert proc.wait(60) == 2
     assert 'already exists and is not empty' in (tmp_path / 'recorder.log').read_text()
     assert (tmp_path / 'bag' / 'keep.txt').read_text() == 'not ours'
+
+
+def test_sigterm_finishes_the_file_too(probe, tmp_path):
+    ns = '/term'
+    bag, proc, diag = record(probe, tmp_path, ns)
+    burst(probe, ns, diag, 200)
+    time.sleep(0.5)
+    assert stop(proc, signal.SIGTERM) == 0
+    got = read_bag(bag)
+    assert got.complete and got.topic('op').count == 200 and got.topic('mv').count == 200

@@ -9,6 +9,7 @@ topics decode straight into numpy; other types through ``mcap_ros2``.
 
 from dataclasses import dataclass, field
 from pathlib import Path
+import struct
 
 from mcap.exceptions import McapError
 from mcap.records import Channel, Footer, Message, Metadata, Schema
@@ -145,7 +146,7 @@ def read_bag(path):
                 raise EOFError('no footer')
         except OSError as err:
             raise BagReadError(f'{file}: cannot read: {err.strerror or err}') from None
-        except (McapError, EOFError, ValueError, KeyError, IndexError) as err:
+        except (McapError, EOFError, ValueError, KeyError, IndexError, struct.error) as err:
             if isinstance(err, BagReadError):
                 raise
             n_file = sum(t.count for t in topics.values()) - n_before

@@ -1,0 +1,102 @@
+"""
+Bag files without ROS: schema text, writer/reader round trip, truncation, repair.
+
+The schema format and metadata layout follow rosbag2 (Jazzy); ``rosbags``
+reading our files is the independent check.
+"""
+
+import struct
+
+import pytest
+from rosbags.rosbag2 import Reader
+from stiction_ros.bag.metadata import qos_profile
+from stiction_ros.bag.msg_definitions import schema_text, SEPARATOR
+from stiction_ros.bag.reader import BagReadError, read_bag
+from stiction_ros.bag.repair import repair_bag
+from stiction_ros.bag.writer import BagError, BagWriter
+from stiction_ros.loop_config import ConfigError, load_loop
+from stiction_ros.paths import config_file
+from stiction_ros.ros_params import node_parameters, params_file
+import yaml
+
+
+def f64(x):
+    return b'\x00\x01\x00\x00' + struct.pack('<d', x)
+
+
+def write(path, n=500, chunk_size=2048):
+    w = BagWriter(path, chunk_size=chunk_size)
+    for name in ('/op', '/mv'):
+        w.add_topic(name, 'std_msgs/msg/Float64', [qos_profile(depth=100)], 'RIHS01_' + '0' * 64)
+    for i in range(n):
+        w.write('/op', f64(0.5 * i), i * 10**9)
+        w.write('/mv', f64(-i), i * 10**9 + 1)
+    w.close()
+    return path
+
+
+def test_schema_has_every_dependency_once_after_the_rosbag2_separator():
+    text = schema_text('diagnostic_msgs/msg/DiagnosticArray')
+    names = [line[5:] for line in text.splitlines() if line.startswith('MSG: ')]
+    assert names == ['diagnostic_msgs/DiagnosticStatus', 'diagnostic_msgs/KeyValue',
+                     'std_msgs/Header', 'builtin_interfaces/Time']
+    assert text.count(SEPARATOR) == 4 and len(SEPARATOR) == 80
+    assert schema_text('std_msgs/msg/Float64').rstrip().endswith('float64 data')
+
+
+def test_round_trip_and_independent_reader(tmp_path):
+    bag = write(tmp_path / 'b')
+    got = read_bag(bag)
+    assert got.complete and not got.warnings
+    assert list(got.topic('op').values()) == [0.5 * i for i in range(500)]
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['message_count'] == 1000 and meta['files'][0]['path'] == 'b_0.mcap'
+    assert got.metadata['message_count'] == 1000      # the rosbag2 record inside the MCAP
+    with Reader(bag) as reader:
+        assert sorted((c.topic, c.msgcount) for c in reader.connections) == [
+            ('/mv', 500), ('/op', 500)]
+
+
+@pytest.mark.parametrize('keep', [0.2, 0.5, 0.9, 0.999])
+def test_truncated_file_yields_its_complete_chunks_and_repairs(tmp_path, keep):
+    bag = write(tmp_path / 'b')
+    mcap = bag / 'b_0.mcap'
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:int(len(data) * keep)])
+    got = read_bag(bag)
+    assert not got.complete and 'ends early' in got.warnings[0]
+    op = got.topic('op').values()
+    assert list(op) == [0.5 * i for i in range(len(op))]   # a prefix, nothing invented
+    assert repair_bag(bag).startswith(str(bag))
+    fixed = read_bag(bag)
+    assert fixed.complete and fixed.topic('op').count == len(op)
+    assert 'nothing to repair' in repair_bag(bag)
+
+
+def test_unreadable_inputs_are_clear_errors(tmp_path):
+    with pytest.raises(BagReadError, match='no such file'):
+        read_bag(tmp_path / 'missing')
+    (tmp_path / 'empty').mkdir()
+    with pytest.raises(BagReadError, match='no .mcap file'):
+        read_bag(tmp_path / 'empty')
+    junk = tmp_path / 'junk.mcap'
+    junk.write_bytes(b'not an mcap file at all')
+    with pytest.raises(BagReadError, match='not a readable MCAP'):
+        read_bag(junk)
+    write(tmp_path / 'taken', n=1)
+    with pytest.raises(BagError, match='not empty'):
+        BagWriter(tmp_path / 'taken')
+
+
+def test_loop_file_maps_to_node_parameters_and_the_shipped_params_file():
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'undershoot')
+    p = node_parameters(cfg)
+    assert p['valve'] == {'sample_time': 1.0, 'phase': 0.75, 'model': 'choudhury',
+                          'initial_position': 50.0, 'S': 5.0, 'J': 2.0}
+    assert p['controller']['Kc'] == 0.2 and p['plant']['delay'] == 10.0
+    assert yaml.safe_load(p['controller']['setpoint_profile'])['type'] == 'steps'
+    shipped = config_file('concentration_undershoot.params.yaml').read_text()
+    assert shipped == params_file(cfg), 'regenerate with loop --write-params'
+    noisy = load_loop(config_file('concentration_loop.yaml'), 'undershoot', {'noise.mv_std': 0.1})
+    with pytest.raises(ConfigError, match='mv_std'):
+        node_parameters(noisy)
