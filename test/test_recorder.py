@@ -43,11 +43,11 @@ def record(probe, tmp_path, ns, flush_period=1.0):
                                    'flush_period': flush_period, 'chunk_size': 65536},
                       namespace=ns, log_dir=str(tmp_path))
     diag = probe.node.create_publisher(DiagnosticArray, f'{ns}/status', 10)
-    for t in ('op', 'mv'):
-        probe.publisher(f'{ns}/{t}')
-    wait_for(lambda: all(probe.node.count_subscribers(f'{ns}/{t}') >= 1
-                         for t in ('op', 'mv', 'status')), what='recorder subscriptions')
-    time.sleep(0.3)
+    pubs = [probe.publisher(f'{ns}/{t}') for t in ('op', 'mv')] + [diag]
+    # matched with the recorder's readers, not just seen in the graph: a
+    # volatile publisher drops what it sends before the match
+    wait_for(lambda: all(p.get_subscription_count() >= 1 for p in pubs),
+             what='recorder subscriptions matched')
     return bag, proc, diag
 
 
@@ -104,6 +104,28 @@ def test_round_trip_through_an_independent_reader(probe, tmp_path):
     assert summary[0]['messages'] == 2 * N + 3
 
 
+def test_an_unwritable_output_is_an_error_at_start(tmp_path):
+    (tmp_path / 'bag').mkdir()
+    (tmp_path / 'bag' / 'keep.txt').write_text('not ours')
+    proc = start_node('recorder', {'output': str(tmp_path / 'bag')}, log_dir=str(tmp_path))
+    assert proc.wait(60) == 2
+    assert 'already exists and is not empty' in (tmp_path / 'recorder.log').read_text()
+    assert (tmp_path / 'bag' / 'keep.txt').read_text() == 'not ours'
+
+
+def test_sigterm_finishes_the_file_too(probe, tmp_path):
+    ns = '/term'
+    bag, proc, diag = record(probe, tmp_path, ns)
+    burst(probe, ns, diag, 200)
+    time.sleep(0.5)
+    assert stop(proc, signal.SIGTERM) == 0
+    got = read_bag(bag)
+    assert got.complete and got.topic('op').count == 200 and got.topic('mv').count == 200
+
+
+# Last in this module: after a SIGKILL, Fast DDS keeps the dead reader matched
+# until its lease expires, and a new recorder started at once by this same
+# publishing process was seen to receive nothing (an issue-7 item).
 def test_sigkill_loses_at_most_the_open_chunk_and_repair_restores_the_bag(probe, tmp_path):
     ns = '/kill'
     bag, proc, diag = record(probe, tmp_path, ns, flush_period=0.2)
@@ -126,22 +148,3 @@ def test_sigkill_loses_at_most_the_open_chunk_and_repair_restores_the_bag(probe,
         assert sum(c.msgcount for c in reader.connections if c.topic == f'{ns}/op') \
             == damaged.topic('op').count
     assert list(bag.glob('*.damaged')), 'the damaged original is kept'
-
-
-def test_an_unwritable_output_is_an_error_at_start(tmp_path):
-    (tmp_path / 'bag').mkdir()
-    (tmp_path / 'bag' / 'keep.txt').write_text('not ours')
-    proc = start_node('recorder', {'output': str(tmp_path / 'bag')}, log_dir=str(tmp_path))
-    assert proc.wait(60) == 2
-    assert 'already exists and is not empty' in (tmp_path / 'recorder.log').read_text()
-    assert (tmp_path / 'bag' / 'keep.txt').read_text() == 'not ours'
-
-
-def test_sigterm_finishes_the_file_too(probe, tmp_path):
-    ns = '/term'
-    bag, proc, diag = record(probe, tmp_path, ns)
-    burst(probe, ns, diag, 200)
-    time.sleep(0.5)
-    assert stop(proc, signal.SIGTERM) == 0
-    got = read_bag(bag)
-    assert got.complete and got.topic('op').count == 200 and got.topic('mv').count == 200
