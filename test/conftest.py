@@ -2,9 +2,25 @@
 
 import os
 
+import pytest
+
 # Set before any test imports rclpy, and inherited by every node process the
 # tests start: discovery only on 127.0.0.1, and a domain of our own so that
 # parallel runs on the same machine do not see each other.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('MPLBACKEND', 'Agg')
+
+
+@pytest.fixture(scope='module')
+def probe(request):
+    """Return an rclpy node of the test module's own, spinning in a thread."""
+    # Imported here: most tests must run, and some must prove they run, without rclpy.
+    import rclpy
+    from ros_helpers import Probe
+    if not rclpy.ok():
+        rclpy.init()
+    p = Probe(request.module.__name__.rsplit('.', 1)[-1] + '_probe')
+    yield p
+    p.close()
+    rclpy.try_shutdown()

@@ -13,7 +13,7 @@ import sys
 import threading
 import time
 
-import rclpy
+from rcl_interfaces.msg import Parameter as ParamMsg
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -128,21 +128,10 @@ class Probe:
     def get_params(self, client, *names):
         """Return the current values of parameters through the standard service."""
         res = self.call(client.get_parameters(list(names)))
-        return [Parameter.from_parameter_msg(_named(n, v)).value
+        return [Parameter.from_parameter_msg(ParamMsg(name=n, value=v)).value
                 for n, v in zip(names, res.values)]
 
     def close(self):
         """Stop spinning and destroy the node."""
         self.executor.shutdown()
         self.node.destroy_node()
-
-
-def _named(name, value):
-    from rcl_interfaces.msg import Parameter as ParamMsg
-    return ParamMsg(name=name, value=value)
-
-
-def init():
-    """Initialise rclpy once for the test session."""
-    if not rclpy.ok():
-        rclpy.init()

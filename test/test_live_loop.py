@@ -11,8 +11,7 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from ros_helpers import init, Probe, start_node, stop, wait_for
+from ros_helpers import start_node, stop, wait_for
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import run_loop
 from stiction_ros.live_summary import summarise
@@ -63,15 +62,6 @@ def test_open_loop_valve_chain_reproduces_the_model_on_the_recorded_op(tmp_path)
     assert exact > 0.95, f'only {exact:.1%} of the samples equal the model on the same OP'
     sj = measure_sj(op, mv)
     assert abs(sj['S'] - 4.0) <= sj['max_step'] and abs(sj['J'] - 1.5) <= sj['max_step']
-
-
-@pytest.fixture(scope='module')
-def probe():
-    init()
-    p = Probe('loop_probe')
-    yield p
-    p.close()
-    rclpy.try_shutdown()
 
 
 def test_a_node_started_late_or_restarted_and_the_loop_resumes(probe, tmp_path):

@@ -9,21 +9,11 @@ import time
 
 import pytest
 from rcl_interfaces.msg import ParameterType
-import rclpy
-from ros_helpers import init, Probe, start_node, stop, wait_for
+from ros_helpers import start_node, stop
 from stiction_ros.paths import config_file
 
 pytestmark = pytest.mark.ros
 TS = 0.05
-
-
-@pytest.fixture(scope='module')
-def probe():
-    init()
-    p = Probe('param_probe')
-    yield p
-    p.close()
-    rclpy.try_shutdown()
 
 
 @pytest.fixture
@@ -116,4 +106,3 @@ def test_shipped_parameter_file_loads_with_params_file(probe, tmp_path):
             'choudhury', 5.0, 2.0, 1.0, 0.75]
     finally:
         assert stop(proc) == 0
-    wait_for(lambda: proc.poll() is not None, what='valve exit')

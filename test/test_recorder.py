@@ -16,8 +16,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 import pytest
-import rclpy
-from ros_helpers import init, Probe, start_node, stop, wait_for
+from ros_helpers import start_node, stop, wait_for
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from stiction_ros.bag.reader import read_bag
@@ -26,15 +25,6 @@ import yaml
 
 pytestmark = pytest.mark.ros
 N = 3000
-
-
-@pytest.fixture(scope='module')
-def probe():
-    init()
-    p = Probe('rec_probe')
-    yield p
-    p.close()
-    rclpy.try_shutdown()
 
 
 def record(probe, tmp_path, ns, flush_period=1.0):

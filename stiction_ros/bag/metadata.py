@@ -31,7 +31,7 @@ def qos_yaml(profiles):
     return yaml.safe_dump(list(profiles), sort_keys=False, default_flow_style=False).rstrip('\n')
 
 
-def bag_metadata(file_name, topics, start_ns, end_ns, compression='', ros_distro=None):
+def bag_metadata(file_name, topics, start_ns, end_ns, ros_distro=None):
     """
     Return the bag metadata mapping (the content under rosbag2_bagfile_information).
 

@@ -112,7 +112,7 @@ class BagWriter:
     def metadata(self):
         """Return the bag metadata mapping for what was written so far."""
         return bag_metadata(self.file_name, list(self.topics.values()), self._start or 0,
-                            self._end or 0, compression='')
+                            self._end or 0)
 
     def _write_metadata(self):
         meta = self.metadata()

@@ -152,19 +152,19 @@ class RecorderNode(Node):
             i -= 1
         return self._clock_sim[i] if i >= 0 else self.get_clock().now().nanoseconds
 
-    def _write(self, name, data, sent):
-        # Both stamps in sim time: the wall send stamp would be decades after
-        # the log time, which validators flag and no reader can relate.
-        t = self._sim_time_at(sent)
-        self.writer.write(name, data, t, t)
+    def _write(self, name, data, sent, received=None):
+        if self._sim:
+            # Both stamps in sim time: the wall send stamp would be decades
+            # after the log time, which validators flag and no reader can relate.
+            received = sent = self._sim_time_at(sent)
+        self.writer.write(name, data, received, sent)
         self._unflushed += 1
 
     def _callback(self, name):
         def on_message(data, info):
             sent = info['source_timestamp']
             if not self._sim:
-                self.writer.write(name, data, info['received_timestamp'], sent)
-                self._unflushed += 1
+                self._write(name, data, sent, info['received_timestamp'])
             elif self._pending or not self._clock_wall or sent >= self._clock_wall[-1]:
                 self._pending.append((name, data, sent))
             else:

@@ -87,7 +87,10 @@ class SimClockNode(Node):
                 ph = -1.0
             if not sep or not 0.0 <= ph < 1.0:
                 raise StartupError(f"sync: {item!r} is not 'topic@phase' with 0 <= phase < 1")
-            entry = {'topic': topic, 'phase_ns': int(round(ph * self.ts_ns)), 'count': 0}
+            # the first instant this topic is due: its phase in the first sample
+            k0 = -(-self.start_ns // self.ts_ns)
+            entry = {'topic': topic, 'first_ns': k0 * self.ts_ns + int(round(ph * self.ts_ns)),
+                     'count': 0}
             self.syncs.append(entry)
             self.create_subscription(Float64, topic, self._counter(entry), SYNC_QOS)
         self.stalls = 0
@@ -109,8 +112,8 @@ class SimClockNode(Node):
                    for i in self.get_subscriptions_info_by_topic(topic))
 
     def _wait(self):
-        missing = [f'{t} ({self._others(t)}/{n})' for t, n in self.waits
-                   if self._others(t) < n]
+        have = {t: self._others(t) for t, _ in self.waits}
+        missing = [f'{t} ({have[t]}/{n})' for t, n in self.waits if have[t] < n]
         now = time.monotonic()
         if missing:
             if now - self._t0_wall > self.values['wait_timeout']:
@@ -145,9 +148,7 @@ class SimClockNode(Node):
         now = self.start_ns + self.n * self.step_ns
         late = []
         for e in self.syncs:
-            k0 = -(-self.start_ns // self.ts_ns)
-            first = k0 * self.ts_ns + e['phase_ns']
-            due = 0 if now < first else (now - first) // self.ts_ns + 1
+            due = 0 if now < e['first_ns'] else (now - e['first_ns']) // self.ts_ns + 1
             if e['count'] < due:
                 late.append(e['topic'])
         return late
