@@ -73,9 +73,11 @@ def test_model_switch_is_bumpless_and_a_new_S_applies_live(probe, valve):
             probe.publish(f'{ns}/op', v)
             time.sleep(TS)
 
-    # Open to 60 and come back 1.5 %: Choudhury (S 5, J 2) sticks at the top
-    # of the stroke, 1.5 below OP, where OP now is.
-    drive([50.0 + 0.25 * i for i in range(41)] + [58.5] * 20)
+    # Step OP from 50 to 60, hold it, then come back 1.5 %: Choudhury (S 5, J 2)
+    # slips to 1.5 below OP, sticks as OP stops, and OP now sits where it stuck.
+    # Steps, not a ramp: a wall-clock ramp is seen with jitter, and a repeated
+    # OP sample makes Choudhury's valve stick mid-ramp at a timing-dependent spot.
+    drive([50.0] * 10 + [60.0] * 20 + [58.5] * 20)
     held = probe.values(f'{ns}/mv')[-1]
     assert held == pytest.approx(58.5, abs=0.3)
     n_before = len(probe.values(f'{ns}/mv'))
