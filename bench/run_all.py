@@ -10,6 +10,7 @@ import datetime
 from pathlib import Path
 import time
 
+from bench.identify_bench import bench_identify, markdown as identify_markdown
 import numpy as np
 
 from stiction_ros.cli.study import machine_description
@@ -64,6 +65,7 @@ def main():
     """Run the benchmarks and write the report."""
     models = bench_models()
     te, ts, gap, moved = bench_physical()
+    ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
     lines = [
         '# Benchmarks',
         '',
@@ -94,6 +96,7 @@ def main():
         f'most {gap:.2g} % of travel.',
         '',
     ]
+    lines += identify_markdown(ident)
     out = ROOT / 'docs' / 'BENCHMARKS.md'
     out.write_text('\n'.join(lines), encoding='utf-8')
     print(out.read_text())

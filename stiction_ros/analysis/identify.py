@@ -1,0 +1,249 @@
+"""
+Identify S and J (and optionally the input filter) from measured OP and MV.
+
+The MSE of eq. 2.8 as a function of (S, J) is piecewise smooth with jumps
+wherever a breakaway instant moves by a sample, so gradient methods and a
+single coarse grid both fail: a shift of 0.02 % in S can multiply the MSE.
+The search is a coarse-to-fine grid on multiples of ``resolution``:
+
+1. a coarse grid over the whole plausible box (S up to the OP range, J up to
+   the MV range), keeping the best ``keep`` distinct candidates, because the
+   best coarse point is often not next to the global optimum;
+2. around every kept candidate, a finer grid spanning the coarse cell, and
+   so on down to ``resolution`` (0.01 % by default);
+3. every candidate is scored exactly, but abandoned as soon as its running
+   error sum passes the worst of the kept ones (``sse_kernels``).
+
+The uncertainty interval of each parameter is the projection of the joint
+95 % region: the grid pairs whose likelihood-ratio statistic
+``N ln(MSE / MSE_min)`` (Gaussian errors) stays under the chi-square quantile
+with two degrees of freedom (5.99).  S and J trade off along ridges, so a
+profile along each axis alone would be too narrow.
+"""
+
+from dataclasses import dataclass, field
+import math
+import time
+
+import numpy as np
+
+from stiction_ros.analysis import sse_kernels
+from stiction_ros.models.lags import first_order_pole
+
+KERNELS = {'kano': 0, 'choudhury': 1}
+CHI2_95_2DOF = 5.991464547107979
+
+
+class IdentifyError(ValueError):
+    """The data cannot support identification (too short, no MV, flat OP)."""
+
+
+@dataclass
+class Fit:
+    """One model's parameters and its MSE (eq. 2.8) on the record."""
+
+    model: str
+    S: float
+    J: float
+    mse: float
+    source: str
+    samples: int
+    filter_name: str | None = None
+    filter_value: float | None = None
+    S_interval: tuple | None = None
+    J_interval: tuple | None = None
+    evaluations: int = 0
+    seconds: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+    def to_json(self):
+        """Return the fit as a JSON-able dict, the report's ``fits`` entry."""
+        out = {'model': self.model, 'S': self.S, 'J': self.J, 'mse': self.mse,
+               'source': self.source, 'samples': self.samples}
+        if self.filter_name:
+            out[self.filter_name] = self.filter_value
+        if self.S_interval is not None:
+            out['S_interval'] = list(self.S_interval)
+            out['J_interval'] = list(self.J_interval)
+        if self.source == 'identified':
+            out['evaluations'] = self.evaluations
+            out['seconds'] = round(self.seconds, 4)
+        out.update(self.extra)
+        return out
+
+
+def segment_bounds(n, segments=None):
+    """Return (starts, stops) int arrays for the kernels; the whole record by default."""
+    if segments is None:
+        segments = [(0, n)]
+    segments = [(int(a), int(b)) for a, b in segments if b - a >= 2]
+    if not segments:
+        raise IdentifyError('no stretch of at least 2 valid samples to fit on')
+    return (np.array([a for a, _ in segments], dtype=np.int64),
+            np.array([b for _, b in segments], dtype=np.int64))
+
+
+class Problem:
+    """The data and model of one identification: scores (S, J) pairs."""
+
+    def __init__(self, model, op, mv, segments=None, filter_value=None, sample_time=1.0):
+        if model not in KERNELS:
+            raise IdentifyError(f'unknown model {model!r}; choose from {sorted(KERNELS)}')
+        self.model = model
+        self.op = np.ascontiguousarray(op, dtype=np.float64)
+        self.mv = np.ascontiguousarray(mv, dtype=np.float64)
+        if self.op.shape != self.mv.shape:
+            raise IdentifyError('op and mv must have the same length')
+        self.starts, self.stops = segment_bounds(len(self.op), segments)
+        self.n = int(np.sum(self.stops - self.starts))
+        self.sample_time = float(sample_time)
+        self.filter_name = 'tau' if model == 'kano' else 'lam'
+        self.filter_value = filter_value
+        self.f = self._kernel_filter(filter_value)
+        self.evaluations = 0
+
+    def _kernel_filter(self, value):
+        if self.model == 'kano':
+            return first_order_pole(value or 0.0, self.sample_time)
+        return 1.0 if value is None else float(value)
+
+    def grid(self, s_values, j_values, limit=math.inf):
+        """Return the SSE on the grid ``s_values`` x ``j_values`` (abandoned past ``limit``)."""
+        s = np.ascontiguousarray(s_values, dtype=np.float64)
+        j = np.ascontiguousarray(j_values, dtype=np.float64)
+        self.evaluations += s.size * j.size
+        return sse_kernels.grid_sse(KERNELS[self.model], self.op, self.mv, self.starts,
+                                    self.stops, s, j, self.f, float(limit))
+
+    def mse(self, S, J):
+        """Return the exact MSE of eq. 2.8 at (S, J)."""
+        return float(self.grid([S], [J])[0, 0]) / self.n
+
+
+def _axis(lo, hi, step, res):
+    """Return grid points on multiples of ``res`` from lo to hi (clipped at 0) every ``step``."""
+    k = max(1, int(round(step / res)))
+    a = max(0, int(math.floor(lo / res)))
+    b = max(a, int(math.ceil(hi / res)))
+    return np.arange(a, b + 1, k) * res
+
+
+def _keep_best(scores, s_values, j_values, keep):
+    """Return the ``keep`` lowest-scoring (sse, S, J), ties broken by smaller S + J."""
+    flat = np.argsort(scores, axis=None, kind='stable')[:keep]
+    out = []
+    for idx in flat:
+        i, j = np.unravel_index(idx, scores.shape)
+        out.append((float(scores[i, j]), float(s_values[i]), float(j_values[j])))
+    return out
+
+
+def search(problem, s_max, j_max, resolution=0.01, coarse_points=48, keep=12, progress=None):
+    """
+    Return (sse, S, J) of the best pair on multiples of ``resolution``.
+
+    ``coarse_points`` sets the coarse step (the larger box side over that
+    many points); each level refines five-fold around the ``keep`` best.
+    """
+    res = float(resolution)
+    step = max(res, max(s_max, j_max) / coarse_points)
+    step = res * max(1, round(step / res))
+    s_axis = _axis(0.0, s_max, step, res)
+    j_axis = _axis(0.0, j_max, step, res)
+    scores = problem.grid(s_axis, j_axis)
+    best = _keep_best(scores, s_axis, j_axis, keep)
+    level = 0
+    while step > res:
+        level += 1
+        fine = res * max(1, round(step / 5 / res))
+        found = {}
+        limit = best[-1][0] if len(best) >= keep else math.inf
+        for _, s0, j0 in best:
+            s_ax = _axis(s0 - step, s0 + step, fine, res)
+            j_ax = _axis(j0 - step, j0 + step, fine, res)
+            sc = problem.grid(s_ax, j_ax, limit)
+            for sse, s, j in _keep_best(sc, s_ax, j_ax, keep):
+                key = (round(s / res), round(j / res))
+                if sse <= limit and key not in found:
+                    found[key] = (sse, s, j)
+        for item in best:
+            found.setdefault((round(item[1] / res), round(item[2] / res)), item)
+        best = sorted(found.values(), key=lambda x: (x[0], x[1] + x[2]))[:keep]
+        step = fine
+        if progress is not None:
+            progress(level, problem.evaluations)
+    return best[0]
+
+
+def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, grow=4):
+    """
+    Return ((S_lo, S_hi), (J_lo, J_hi)): the 95 % joint region projected on each axis.
+
+    The region is every grid pair with ``N ln(MSE / MSE_min)`` under the
+    two-degree-of-freedom chi-square quantile; the window around the optimum
+    doubles while the region touches its edge (at most ``grow`` times).
+    """
+    if mse_min <= 0.0:
+        return (S, S), (J, J)
+    sse_bound = mse_min * problem.n * math.exp(CHI2_95_2DOF / problem.n) * (1 + 1e-12)
+    w = half_width
+    for _ in range(grow + 1):
+        s_ax = _axis(S - w, S + w, resolution, resolution)
+        j_ax = _axis(J - w, J + w, resolution, resolution)
+        inside = problem.grid(s_ax, j_ax, sse_bound) <= sse_bound
+        ii, jj = np.nonzero(inside)
+        at_edge = (ii.max() == len(s_ax) - 1 or jj.max() == len(j_ax) - 1
+                   or (ii.min() == 0 and s_ax[0] > 0) or (jj.min() == 0 and j_ax[0] > 0))
+        if not at_edge:
+            break
+        w *= 2
+    return ((round(float(s_ax[ii.min()]), 10), round(float(s_ax[ii.max()]), 10)),
+            (round(float(j_ax[jj.min()]), 10), round(float(j_ax[jj.max()]), 10)))
+
+
+def plausible_box(op, mv):
+    """Return (s_max, j_max): S cannot exceed the OP travel, J the MV travel."""
+    s_max = float(np.ptp(op))
+    j_max = float(np.ptp(mv))
+    if s_max <= 0.0:
+        raise IdentifyError('OP never moves, so S and J cannot be identified')
+    return min(s_max, 100.0), max(min(j_max, 100.0), 0.5)
+
+
+def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.01,
+             filter_values=None, interval=True, progress=None):
+    """
+    Identify (S, J) of ``model`` on measured OP and MV; return a :class:`Fit`.
+
+    ``filter_values``: if given, a sequence of air-chamber time constants
+    (Kano, seconds) or EWMA weights (Choudhury) to try; the best is kept.
+    """
+    t0 = time.perf_counter()
+    op = np.asarray(op, dtype=np.float64)
+    mv = np.asarray(mv, dtype=np.float64)
+    s_max, j_max = plausible_box(op, mv)
+    candidates = [None] if filter_values is None else list(filter_values)
+    best = None
+    problems = []
+    for fv in candidates:
+        problem = Problem(model, op, mv, segments, fv, sample_time)
+        problems.append(problem)
+        sse, S, J = search(problem, s_max, j_max, resolution, progress=progress)
+        if best is None or sse < best[0]:
+            best = (sse, S, J, fv, problem)
+    sse, S, J, fv, problem = best
+    mse = sse / problem.n
+    fit = Fit(model, round(S, 10), round(J, 10), mse, 'identified', problem.n,
+              problem.filter_name if filter_values is not None else None, fv)
+    if interval:
+        fit.S_interval, fit.J_interval = confidence_box(problem, S, J, mse, resolution)
+    fit.evaluations = sum(p.evaluations for p in problems)
+    fit.seconds = time.perf_counter() - t0
+    return fit
+
+
+def given_fit(op, mv, model, S, J, segments=None, sample_time=1.0, filter_value=None):
+    """Return the :class:`Fit` (MSE of eq. 2.8) of ``model`` with the given S and J."""
+    problem = Problem(model, op, mv, segments, filter_value, sample_time)
+    return Fit(model, float(S), float(J), problem.mse(S, J), 'given', problem.n,
+               problem.filter_name if filter_value is not None else None, filter_value)

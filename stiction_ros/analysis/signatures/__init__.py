@@ -1,0 +1,1 @@
+"""Published stiction signatures computed from OP and PV alone (no valve position)."""

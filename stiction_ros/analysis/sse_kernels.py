@@ -1,0 +1,166 @@
+"""
+Compiled sum-of-squared-errors kernels for identifying S and J.
+
+Identification evaluates a model thousands of times on the same record, so
+these kernels fuse the model and the error sum (no output array), and stop as
+soon as the sum passes ``limit``: a candidate already worse than the ones kept
+needs no exact score.  The friction logic is the one of
+``stiction_ros.models.kano`` and ``stiction_ros.models.choudhury`` (percent
+input, linear characteristic), started at rest at the first measured position
+of every valid segment; ``test_identify.py`` checks that both give the same
+numbers.  Without numba the same functions run as plain Python, slowly.
+"""
+
+import numpy as np
+
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is in the requirements
+    def njit(*args, **kwargs):
+        """Return the function unchanged when numba is missing."""
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+
+@njit(cache=True)
+def _clip(x):
+    return 0.0 if x < 0.0 else 100.0 if x > 100.0 else x
+
+
+@njit(cache=True)
+def _breakaway(d, rel, S, J):
+    # Same rule as stiction_ros.models.breakaway, compiled.
+    if d == 0.0:
+        if abs(rel) > 0.5 * (S + J):
+            return 1.0 if rel > 0.0 else -1.0
+        return 0.0
+    if -d * rel > S:
+        return -d
+    if d * rel > J:
+        return d
+    return 0.0
+
+
+@njit(cache=True)
+def kano_sse(u, y, starts, stops, S, J, a, limit):
+    """Return the SSE of Kano's model (air-chamber pole ``a``) against ``y``, or > ``limit``."""
+    fd = 0.5 * (S - J)
+    sse = 0.0
+    for s in range(starts.shape[0]):
+        i0 = starts[s]
+        yk = y[i0]
+        uf = u[i0]
+        u1 = _clip(uf)
+        u2 = u1
+        us = u1
+        resting = True
+        d = 0.0
+        for k in range(i0, stops[s]):
+            uf = a * uf + (1.0 - a) * u[k]
+            uk = _clip(uf)
+            if not resting and (uk - u1) * (u1 - u2) <= 0.0:
+                us = u1
+                resting = True
+            if resting:
+                nd = _breakaway(d, uk - us, S, J)
+                if nd != 0.0:
+                    d = nd
+                    resting = False
+            if not resting:
+                yk = _clip(uk - d * fd)
+            e = yk - y[k]
+            sse += e * e
+            if sse > limit:
+                return sse
+            u2 = u1
+            u1 = uk
+    return sse
+
+
+@njit(cache=True)
+def choudhury_sse(u, y, starts, stops, S, J, lam, limit):
+    """Return the SSE of Choudhury's model (EWMA weight ``lam``) against ``y``, or > ``limit``."""
+    fd = 0.5 * (S - J)
+    sse = 0.0
+    for s in range(starts.shape[0]):
+        i0 = starts[s]
+        pos = y[i0]
+        x = u[i0]
+        xprev = x
+        sprev = 0.0
+        xss = x
+        stuck = True
+        d = 0.0
+        for k in range(i0, stops[s]):
+            x = lam * u[k] + (1.0 - lam) * x
+            dx = x - xprev
+            sl = 0.0 if dx == 0.0 else (1.0 if dx > 0.0 else -1.0)
+            if x <= 0.0 or x >= 100.0:
+                d = -1.0 if x <= 0.0 else 1.0
+                pos = 0.0 if x <= 0.0 else 100.0
+                stuck = True
+                xss = pos + d * fd
+            else:
+                if not stuck and sl != sprev:
+                    stuck = True
+                    xss = xprev
+                if stuck:
+                    nd = _breakaway(d, x - xss, S, J)
+                    if nd != 0.0:
+                        d = nd
+                        stuck = False
+                if not stuck:
+                    pos = _clip(x - d * fd)
+            sprev = sl
+            xprev = x
+            e = pos - y[k]
+            sse += e * e
+            if sse > limit:
+                return sse
+    return sse
+
+
+@njit(cache=True)
+def grid_sse(kernel_id, u, y, starts, stops, s_values, j_values, f, limit):
+    """Return the SSE of every (S, J) pair on a grid, each abandoned past ``limit``."""
+    out = np.empty((s_values.shape[0], j_values.shape[0]))
+    for i in range(s_values.shape[0]):
+        for j in range(j_values.shape[0]):
+            if kernel_id == 0:
+                out[i, j] = kano_sse(u, y, starts, stops, s_values[i], j_values[j], f, limit)
+            else:
+                out[i, j] = choudhury_sse(u, y, starts, stops, s_values[i], j_values[j], f,
+                                          limit)
+    return out
+
+
+@njit(cache=True)
+def kano_output(u, y0, S, J, a):
+    """Return Kano's output for input ``u``, at rest at ``y0`` before the first sample."""
+    y = np.empty(u.shape[0])
+    fd = 0.5 * (S - J)
+    yk = y0
+    uf = u[0]
+    u1 = _clip(uf)
+    u2 = u1
+    us = u1
+    resting = True
+    d = 0.0
+    for k in range(u.shape[0]):
+        uf = a * uf + (1.0 - a) * u[k]
+        uk = _clip(uf)
+        if not resting and (uk - u1) * (u1 - u2) <= 0.0:
+            us = u1
+            resting = True
+        if resting:
+            nd = _breakaway(d, uk - us, S, J)
+            if nd != 0.0:
+                d = nd
+                resting = False
+        if not resting:
+            yk = _clip(uk - d * fd)
+        y[k] = yk
+        u2 = u1
+        u1 = uk
+    return y

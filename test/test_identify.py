@@ -1,0 +1,108 @@
+"""
+S and J identification on noisy closed-loop records whose truth is known.
+
+The loop is the chapter's concentration loop run by the offline simulator
+with noise on PV (so OP, the valve input, is noisy too) and on the measured
+valve position, over the chapter's industrial record length (8 641 samples).
+"""
+
+import numpy as np
+import pytest
+
+from stiction_ros.analysis.identify import (
+    _axis, given_fit, identify, IdentifyError, Problem, search)
+from stiction_ros.analysis.sse_kernels import kano_output
+from stiction_ros.closed_loop import simulate_loop
+from stiction_ros.loop_config import load_loop
+from stiction_ros.models import create
+from stiction_ros.models.lags import first_order_pole
+from stiction_ros.paths import config_file
+
+N_INDUSTRIAL = 8641
+
+
+def noisy_loop(model, S, J, seed, duration=N_INDUSTRIAL - 1, mv_std=0.1, **valve):
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'valve': {'model': model, 'S': S, 'J': J, **valve},
+        'noise': {'pv_std': 0.02, 'mv_std': mv_std, 'seed': seed},
+        'duration': float(duration)})
+    return simulate_loop(cfg)
+
+
+@pytest.mark.parametrize('model', ['kano', 'choudhury'])
+@pytest.mark.parametrize('S, J, seed', [(3.47, 1.23, 1), (4.12, 6.55, 4), (7.31, 0.0, 3)])
+def test_identification_recovers_S_and_J_within_a_tenth_of_a_percent(model, S, J, seed):
+    d = noisy_loop(model, S, J, seed)
+    assert len(d['op']) == N_INDUSTRIAL
+    fit = identify(d['op'], d['mv'], model)
+    assert abs(fit.S - S) <= 0.1 and abs(fit.J - J) <= 0.1, (fit.S, fit.J)
+    # the reported 95 % region contains the truth, and the optimum is no worse
+    # than the truth: the search found the global minimum, not a local one
+    assert fit.S_interval[0] <= S <= fit.S_interval[1]
+    assert fit.J_interval[0] <= J <= fit.J_interval[1]
+    assert fit.mse <= Problem(model, d['op'], d['mv']).mse(S, J) + 1e-12
+    # results lie on the 0.01 % grid
+    assert round(fit.S * 100) == pytest.approx(fit.S * 100, abs=1e-6)
+
+
+def test_no_point_of_a_dense_grid_beats_the_search():
+    d = noisy_loop('kano', 5.26, 2.71, seed=7, duration=3000)
+    problem = Problem('kano', d['op'], d['mv'])
+    sse, S, J = search(problem, float(np.ptp(d['op'])), float(np.ptp(d['mv'])))
+    s_axis = _axis(4.76, 5.76, 0.01, 0.01)
+    j_axis = _axis(2.21, 3.21, 0.01, 0.01)
+    dense = problem.grid(s_axis, j_axis)
+    assert sse <= dense.min() * (1 + 1e-12)
+    # and the landscape is as rugged as the chapter warns: 0.02 % off in S
+    # moves breakaways and raises the MSE well above the noise floor
+    assert problem.mse(S + 0.02, J) > 1.5 * problem.mse(S, J)
+
+
+def test_air_chamber_time_constant_is_identified_when_asked():
+    d = noisy_loop('kano', 4.4, 1.6, seed=5, duration=4000, tau=3.0, sample_time=1.0)
+    taus = [0.0, 1.0, 2.0, 3.0, 4.0, 6.0]
+    fit = identify(d['op'], d['mv'], 'kano', sample_time=1.0, filter_values=taus)
+    assert fit.filter_name == 'tau' and fit.filter_value == 3.0
+    assert abs(fit.S - 4.4) <= 0.1 and abs(fit.J - 1.6) <= 0.1
+    assert fit.to_json()['tau'] == 3.0
+
+
+def test_mse_is_equation_2_8_of_the_reference_model():
+    d = noisy_loop('choudhury', 5.0, 2.0, seed=2, duration=2000)
+    for model in ('kano', 'choudhury'):
+        fit = given_fit(d['op'], d['mv'], model, 5.0, 2.0)
+        mv_hat = create(model, S=5.0, J=2.0).simulate(d['op'], y0=d['mv'][0])
+        assert fit.mse == pytest.approx(np.mean((d['mv'] - mv_hat) ** 2), rel=1e-12)
+        assert fit.source == 'given' and fit.samples == len(d['op'])
+
+
+def test_compiled_kernel_matches_the_reference_model_with_an_air_chamber():
+    rng = np.random.default_rng(3)
+    op = np.clip(50 + np.cumsum(rng.normal(0, 0.5, 3000)), -3, 103)
+    for S, J in ((5.0, 2.0), (2.0, 6.0), (0.0, 0.0)):
+        ref = create('kano', S=S, J=J, tau=2.5, sample_time=1.0).simulate(op, y0=44.0)
+        fast = kano_output(op, 44.0, S, J, first_order_pole(2.5, 1.0))
+        assert np.array_equal(ref, fast)
+
+
+def test_segments_restart_the_model_and_never_bridge_a_gap():
+    d = noisy_loop('kano', 5.0, 2.0, seed=9, duration=3000, mv_std=0.0)
+    op, mv = d['op'].copy(), d['mv'].copy()
+    # a gap of 200 samples where the record was replaced by garbage
+    op[1000:1200] = 0.0
+    mv[1000:1200] = 100.0
+    segs = [(0, 1000), (1200, len(op))]
+    fit = given_fit(op, mv, 'kano', 5.0, 2.0, segments=segs)
+    assert fit.samples == len(op) - 200
+    # each segment restarts at rest at its first measured position, so only
+    # the restart transient (at most one valve travel) differs from the truth
+    assert fit.mse < 0.5
+    whole = given_fit(op, mv, 'kano', 5.0, 2.0)
+    assert whole.mse > 100 * fit.mse
+
+
+def test_flat_op_cannot_be_identified():
+    with pytest.raises(IdentifyError, match='OP never moves'):
+        identify(np.full(100, 40.0), np.full(100, 40.0))
+    with pytest.raises(IdentifyError, match='unknown model'):
+        given_fit(np.arange(10.0), np.arange(10.0), 'stenman', 1.0, 0.0)
