@@ -6,10 +6,11 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo reproduce test lint bench colcon clean
+.PHONY: venv demo reproduce accuracy test lint bench colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
-# lockstep sim clock at 100x real time, recorded to out/demo_bag.
+# lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
+# (out/demo_report.html).
 DEMO_CASE ?= undershoot
 
 venv:
@@ -19,9 +20,16 @@ demo: venv
 	rm -rf out/demo_bag out/demo_bag.logs
 	$(PY) -m stiction_ros.cli.loop config/concentration_loop.yaml --case $(DEMO_CASE) \
 	  --rtf 100 --record out/demo_bag --json out/demo_summary.json
+	$(PY) -m stiction_ros.cli.analyze out/demo_bag --json out/demo_report.json \
+	  --html out/demo_report.html
 
 reproduce: venv
 	$(PY) -m stiction_ros.cli.study --out docs
+
+# The analyzer on every labelled plant loop, cross-validated by loop.
+accuracy: venv
+	$(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
+	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
 test: venv
 	$(PY) -m pytest -q test

@@ -28,6 +28,7 @@ setup(
             'stiction-sim = stiction_ros.cli.sim:main',
             'stiction-study = stiction_ros.cli.study:main',
             'stiction-bag = stiction_ros.cli.bag:main',
+            'stiction-analyze = stiction_ros.cli.analyze:main',
             # Node executables, as `ros2 run stiction_ros <name>` finds them.
             'controller = stiction_ros.nodes.controller_node:main',
             'valve = stiction_ros.nodes.valve_node:main',
@@ -35,6 +36,7 @@ setup(
             'recorder = stiction_ros.nodes.recorder_node:main',
             'sim_clock = stiction_ros.nodes.sim_clock_node:main',
             'loop = stiction_ros.cli.loop:main',
+            'analyzer = stiction_ros.nodes.analyzer_node:main',
         ],
     },
 )

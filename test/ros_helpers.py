@@ -22,7 +22,8 @@ from std_msgs.msg import Float64
 from stiction_ros.nodes.sampled import DATA_QOS
 
 MODULES = {'controller': 'controller_node', 'valve': 'valve_node', 'plant': 'plant_node',
-           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
+           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node',
+           'analyzer': 'analyzer_node'}
 
 
 def start_node(name, params=None, namespace='', log_dir=None, extra=()):

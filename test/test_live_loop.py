@@ -7,6 +7,9 @@ offline one (period within 5 %, amplitude within 10 %); in practice they
 agree sample for sample unless a message misses its quarter-sample slot.
 """
 
+import json
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -62,6 +65,14 @@ def test_open_loop_valve_chain_reproduces_the_model_on_the_recorded_op(tmp_path)
     assert exact > 0.95, f'only {exact:.1%} of the samples equal the model on the same OP'
     sj = measure_sj(op, mv)
     assert abs(sj['S'] - 4.0) <= sj['max_step'] and abs(sj['J'] - 1.5) <= sj['max_step']
+    # The analyzer reads the recorder's bag and identifies the valve it recorded.
+    res = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.analyze', str(bag.path),
+                          '--model', 'kano', '--json', str(tmp_path / 'r.json')],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    (fit,) = json.loads((tmp_path / 'r.json').read_text())['fits']
+    assert abs(fit['S'] - 4.0) <= 0.1 and abs(fit['J'] - 1.5) <= 0.1, fit
+    assert fit['samples'] >= 395
 
 
 def test_a_node_started_late_or_restarted_and_the_loop_resumes(probe, tmp_path):

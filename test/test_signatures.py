@@ -15,6 +15,7 @@ from stiction_ros.analysis.signatures.he_curve_fit import he_curve_fit
 from stiction_ros.analysis.signatures.horch import horch
 from stiction_ros.analysis.signatures.plots import signature_figure
 from stiction_ros.analysis.signatures.result import Signature
+from stiction_ros.analysis.signatures.yamashita import yamashita
 from stiction_ros.closed_loop import build_controller, build_plant, build_valve, simulate_loop
 from stiction_ros.loop_config import load_loop
 from stiction_ros.paths import config_file
@@ -301,7 +302,8 @@ def test_compute_signatures_on_a_sticky_loop(tmp_path):
     d = loop(STICKY)
     osc, sigs = compute_signatures(d['op'], d['pv'], d['sp'], 1.0)
     assert osc.oscillating and osc.period_s == pytest.approx(144, rel=0.05)
-    assert list(sigs) == ['horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op']
+    assert list(sigs) == ['horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op',
+                          'yamashita']
     assert sigs['horch'].stiction is True and sigs['he_curve_fit'].stiction is True
     assert sigs['ellipse'].value > sigs['ellipse'].threshold
     json.dumps({k: s.to_json() for k, s in sigs.items()}, allow_nan=False)
@@ -330,3 +332,26 @@ def test_integrating_loop_through_compute_signatures():
     assert sigs['he_curve_fit'].stiction is True
     assert sigs['he_curve_fit'].details['signal'] == 'pv'
     assert sigs['ellipse'].details['pv_signal'] == 'dPV/dt'
+
+
+# -- Yamashita (2006) qualitative shapes ----------------------------------------------------------
+
+@pytest.mark.parametrize('case, integrating', [(STICKY, False), (INTEGRATING, True)])
+def test_yamashita_sticky_loop_moves_op_while_the_valve_stays(case, integrating):
+    d = loop(case)
+    sig = yamashita(d['op'], d['pv'], 1.0, integrating=integrating)
+    assert sig.stiction is True and sig.value > 0.5, sig.reason
+
+
+@pytest.mark.parametrize('case, disturbance', [(AGGRESSIVE, (0.0, 1.0)),
+                                               (LINEAR, (1.0, 30.0))])
+def test_yamashita_linear_valve_never_leaves_op_moving_alone(case, disturbance):
+    d = loop(case, disturbance=disturbance)
+    sig = yamashita(d['op'], d['pv'], 1.0)
+    assert sig.stiction is False and sig.value <= 0.25, sig.reason
+
+
+def test_yamashita_noise_alone_is_not_informative():
+    rng = np.random.default_rng(4)
+    sig = yamashita(rng.normal(50, 0.01, 2000), rng.normal(0, 0.01, 2000), 1.0)
+    assert sig.stiction is not True

@@ -221,7 +221,9 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
     t0 = time.perf_counter()
     op = np.asarray(op, dtype=np.float64)
     mv = np.asarray(mv, dtype=np.float64)
-    s_max, j_max = plausible_box(op, mv)
+    starts, stops = segment_bounds(len(op), segments)
+    used = np.concatenate([np.arange(a, b) for a, b in zip(starts, stops)])
+    s_max, j_max = plausible_box(op[used], mv[used])
     candidates = [None] if filter_values is None else list(filter_values)
     best = None
     problems = []
@@ -247,3 +249,16 @@ def given_fit(op, mv, model, S, J, segments=None, sample_time=1.0, filter_value=
     problem = Problem(model, op, mv, segments, filter_value, sample_time)
     return Fit(model, float(S), float(J), problem.mse(S, J), 'given', problem.n,
                problem.filter_name if filter_value is not None else None, filter_value)
+
+
+def mse_landscape(op, mv, fit, segments=None, sample_time=1.0, half_width=0.5, points=51):
+    """Return the MSE on a grid around ``fit`` and the 95 % bound, for the report's figure."""
+    problem = Problem(fit.model, op, mv, segments, fit.filter_value, sample_time)
+    s_ax = np.linspace(max(0.0, fit.S - half_width), fit.S + half_width, points)
+    j_ax = np.linspace(max(0.0, fit.J - half_width), fit.J + half_width, points)
+    # Abandon far-off points: the colour scale saturates there anyway.
+    cap = max(fit.mse, 1e-12) * 1e4 * problem.n
+    mse = np.minimum(problem.grid(s_ax, j_ax, cap), cap) / problem.n
+    bound = fit.mse * math.exp(CHI2_95_2DOF / problem.n)
+    return {'model': fit.model, 'S': s_ax, 'J': j_ax, 'mse': np.maximum(mse, 1e-12),
+            'bound': bound, 'best': (fit.S, fit.J)}

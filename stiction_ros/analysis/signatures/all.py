@@ -16,6 +16,7 @@ from stiction_ros.analysis.signatures import bicoherence as bic
 from stiction_ros.analysis.signatures import ellipse as ell
 from stiction_ros.analysis.signatures import he_curve_fit as he
 from stiction_ros.analysis.signatures import horch as hor
+from stiction_ros.analysis.signatures import yamashita as yam
 from stiction_ros.analysis.signatures.result import Signature
 
 # name: (threshold, reference) of the signatures that need an oscillation
@@ -33,11 +34,14 @@ def compute_signatures(op, pv, sp, sample_time, integrating=False):
 
     ``oscillation`` is the :class:`OscillationResult` of SP - PV;
     ``signatures`` maps 'horch', 'he_curve_fit', 'bicoherence', 'ellipse' and
-    'hos_pv_op' (bicoherence combined with the PV-OP ellipse) to their
+    'hos_pv_op' (bicoherence combined with the PV-OP ellipse) and 'yamashita' to their
     :class:`Signature`.  ``sp`` may be a scalar.  ``integrating`` is True for
     a process with an integrator (e.g. a level loop).
     """
     op, pv = as_signal(op), as_signal(pv)
+    if sp is None:
+        # Without a set point the deviation from the mean stands in for the error.
+        sp = float(np.mean(pv))
     sp = np.broadcast_to(as_signal(sp), pv.shape) if np.ndim(sp) else np.full(pv.shape, sp)
     if len(op) != len(pv):
         raise ValueError(f'op has {len(op)} samples but pv has {len(pv)}')
@@ -59,5 +63,7 @@ def compute_signatures(op, pv, sp, sample_time, integrating=False):
         for name, (threshold, reference) in NEED_OSCILLATION.items():
             sigs[name] = Signature(name, None, threshold, None,
                                    f'no regular oscillation ({osc.reason})', reference)
-    order = ('horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op')
+    # Yamashita's index needs no oscillation: slow stick-slip events suffice.
+    sigs['yamashita'] = yam.yamashita(op, pv, sample_time, integrating=integrating)
+    order = ('horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op', 'yamashita')
     return osc, {name: sigs[name] for name in order}

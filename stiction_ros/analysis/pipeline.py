@@ -1,0 +1,253 @@
+"""
+From a loaded record to the analyzer's report: fits, signatures and the verdict.
+
+``analyze(record, options)`` returns a :class:`Analysis`: the JSON report
+(documented field by field in the README) plus the arrays the figures need.
+Nothing here reads files or draws; ``stiction_ros.cli.analyze`` does both.
+"""
+
+from dataclasses import dataclass, field
+import re
+
+import numpy as np
+
+from stiction_ros.analysis.identify import given_fit, identify, IdentifyError
+from stiction_ros.analysis.verdict import combine
+from stiction_ros.models import create
+
+MODEL_CHOICES = ('kano', 'choudhury', 'both')
+LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
+# Historian tags name the measured variable: LIC/LC = level, an integrating loop.
+_LEVEL_TAG = re.compile(r'(^|[^A-Z])L[IDR]*C', re.IGNORECASE)
+MIN_SIGNATURE_SAMPLES = 100
+# Longest run of invalid samples the signatures (never the fits) bridge.
+MAX_BRIDGE = 2
+
+
+@dataclass
+class Options:
+    """What the engineer asked for (command-line options or node parameters)."""
+
+    model: str = 'both'
+    S: float | None = None
+    J: float | None = None
+    fit_filter: bool = False
+    loop_type: str = 'auto'
+    hammerstein: bool = True
+
+    def __post_init__(self):
+        if self.model not in MODEL_CHOICES:
+            raise ValueError(f'model must be one of {MODEL_CHOICES}, got {self.model!r}')
+        if self.loop_type not in LOOP_TYPES:
+            raise ValueError(f'loop type must be one of {LOOP_TYPES}, got {self.loop_type!r}')
+        if (self.S is None) != (self.J is None):
+            raise ValueError('give both S and J, or neither (then they are identified)')
+        for name in ('S', 'J'):
+            v = getattr(self, name)
+            if v is not None and not 0.0 <= v <= 100.0:
+                raise ValueError(f'{name} = {v} is outside [0, 100] % of span')
+
+    @property
+    def models(self):
+        """Return the model names to fit."""
+        return ('kano', 'choudhury') if self.model == 'both' else (self.model,)
+
+
+@dataclass
+class Analysis:
+    """The report and the arrays behind its figures."""
+
+    report: dict
+    record: object
+    fits: list = field(default_factory=list)
+    predictions: dict = field(default_factory=dict)
+    oscillation: object = None
+    signatures: dict = field(default_factory=dict)
+    signature_window: tuple | None = None
+    landscape: dict | None = None
+
+
+def is_integrating(record, loop_type):
+    """Return whether to treat the loop as integrating (level) and why."""
+    if loop_type != 'auto':
+        return loop_type == 'integrating', f'loop type {loop_type} (given)'
+    if _LEVEL_TAG.search(record.name or ''):
+        return True, f'loop type integrating (level tag {record.name})'
+    return False, 'loop type self-regulating (assumed; give --loop-type for a level loop)'
+
+
+# Kano's air-chamber time constants tried when the filter is identified, in samples.
+FILTER_TAUS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
+
+
+def fit_models(record, options, progress=None):
+    """Return (fits, predictions): each model's Fit and its predicted MV."""
+    op, mv = record.signals['op'], record.signals['mv']
+    segs = record.segments(min_samples=2)
+    ts = record.sample_time
+    fits, predictions = [], {}
+    for model in options.models:
+        if options.S is not None:
+            fit = given_fit(op, mv, model, options.S, options.J, segs, ts)
+        else:
+            fv = None
+            if options.fit_filter:
+                fv = ([t * ts for t in FILTER_TAUS] if model == 'kano'
+                      else [1.0, 0.8, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1])
+            fit = identify(op, mv, model, segs, ts, filter_values=fv, progress=progress)
+        ideal = ideal_valve_mse(op, mv, segs)
+        fit.extra['ideal_valve_mse'] = ideal
+        fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
+        fits.append(fit)
+        predictions[model] = predict(model, fit, op, mv, segs, ts)
+    return fits, predictions
+
+
+def ideal_valve_mse(op, mv, segments):
+    """Return the MSE of an ideal valve (MV = OP within 0-100 %): the fits' yardstick."""
+    err = np.concatenate([np.clip(op[a:b], 0, 100) - mv[a:b] for a, b in segments])
+    return float(np.mean(err ** 2))
+
+
+def predict(model, fit, op, mv, segments, sample_time):
+    """Return the model's MV over the record (NaN outside the valid segments)."""
+    params = {'S': fit.S, 'J': fit.J}
+    if fit.filter_name == 'tau':
+        params.update(tau=fit.filter_value, sample_time=sample_time)
+    elif fit.filter_name == 'lam':
+        params['lam'] = fit.filter_value
+    valve = create(model, **params)
+    out = np.full(len(op), np.nan)
+    for a, b in segments:
+        out[a:b] = valve.simulate(op[a:b], y0=mv[a])
+    return out
+
+
+def bridged_valid(record, max_gap=MAX_BRIDGE):
+    """
+    Return (valid mask, samples held) with runs of at most ``max_gap`` invalid samples bridged.
+
+    Only the OP/PV signatures use this: correlation, curve fitting and
+    spectra need contiguous samples, and historian exports flag single
+    samples every few minutes.  A bridged sample holds the last valid
+    value; the fits never bridge anything.
+    """
+    valid = record.valid.copy()
+    held = 0
+    k, n = 0, len(valid)
+    while k < n:
+        if valid[k]:
+            k += 1
+            continue
+        stop = k
+        while stop < n and not valid[stop]:
+            stop += 1
+        if 0 < k and stop < n and stop - k <= max_gap:
+            valid[k:stop] = True
+            held += stop - k
+        k = stop
+    return valid, held
+
+
+def signature_window(record):
+    """Return (start, stop, samples held) of the longest stretch for the signatures, or None."""
+    if not (record.has('op') and record.has('pv')):
+        return None
+    valid, _ = bridged_valid(record)
+    best = None
+    k, n = 0, len(valid)
+    while k < n:
+        if not valid[k]:
+            k += 1
+            continue
+        stop = k
+        while stop < n and valid[stop]:
+            stop += 1
+        if best is None or stop - k > best[1] - best[0]:
+            best = (k, stop)
+        k = stop
+    if best is None or best[1] - best[0] < MIN_SIGNATURE_SAMPLES:
+        return None
+    held = int(np.sum(~record.valid[best[0]:best[1]]))
+    return best[0], best[1], held
+
+
+def held_signals(record, a, b):
+    """Return op, pv, sp on [a, b) with bridged samples holding the last valid value."""
+    out = {}
+    ok = record.valid[a:b]
+    for name in ('op', 'pv', 'sp'):
+        if not record.has(name):
+            out[name] = None
+            continue
+        x = record.signals[name][a:b].copy()
+        for k in np.flatnonzero(~ok):
+            x[k] = x[k - 1]
+        out[name] = x
+    return out
+
+
+def run_signatures(record, integrating):
+    """Return (oscillation, signatures dict, window) on the longest usable stretch."""
+    from stiction_ros.analysis.signatures.all import compute_signatures
+    win = signature_window(record)
+    if win is None:
+        return None, {}, None
+    a, b, _ = win
+    x = held_signals(record, a, b)
+    osc, sigs = compute_signatures(x['op'], x['pv'], x['sp'], record.sample_time,
+                                   integrating=integrating)
+    return osc, sigs, win
+
+
+def run_hammerstein(record, win, integrating):
+    """Return the Hammerstein quantification on the signature window, or None."""
+    from stiction_ros.analysis.hammerstein import quantify
+    a, b, _ = win
+    x = held_signals(record, a, b)
+    return quantify(x['op'], x['pv'], record.sample_time, integrating=integrating)
+
+
+def analyze(record, options=None, progress=None):
+    """Return the :class:`Analysis` of ``record``."""
+    options = options or Options()
+    notes = list(record.notes)
+    report = {
+        'input': {k: str(v) for k, v in record.source.items()},
+        'name': record.name, 'start_time': record.start_time,
+        'samples': int(record.samples), 'sample_time': float(record.sample_time),
+        'valid_samples': int(np.sum(record.valid)),
+        'signals': [s for s in ('op', 'mv', 'pv', 'sp') if record.has(s)],
+        'excluded': record.excluded, 'fits': [],
+    }
+    analysis = Analysis(report, record)
+    if record.has('mv'):
+        try:
+            analysis.fits, analysis.predictions = fit_models(record, options, progress)
+            report['fits'] = [f.to_json() for f in analysis.fits]
+        except IdentifyError as exc:
+            notes.append(f'no model fit: {exc}')
+    else:
+        notes.append('no valve position (mv): fits skipped; the verdict rests on OP and PV')
+    integrating, why = is_integrating(record, options.loop_type)
+    report['loop_type'] = 'integrating' if integrating else 'self-regulating'
+    notes.append(why)
+    osc, sigs, win = run_signatures(record, integrating)
+    analysis.oscillation, analysis.signatures, analysis.signature_window = osc, sigs, win
+    if win is None:
+        notes.append(f'signatures skipped: they need OP and PV over at least '
+                     f'{MIN_SIGNATURE_SAMPLES} contiguous valid samples')
+    else:
+        report['signature_window'] = {'start_s': float(record.t[win[0]]),
+                                      'end_s': float(record.t[win[1] - 1]),
+                                      'samples': int(win[1] - win[0]), 'held': win[2]}
+        if win[2]:
+            notes.append(f'signatures: {win[2]} isolated invalid samples (runs of at most '
+                         f'{MAX_BRIDGE}) hold the previous value so that the signatures see '
+                         f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
+    ham = None
+    if win is not None and options.hammerstein and not record.has('mv'):
+        ham = run_hammerstein(record, win, integrating)
+    report['stiction'] = combine(osc, sigs, report['fits'], ham)
+    report['notes'] = notes
+    return analysis

@@ -1,0 +1,103 @@
+"""
+A single self-contained HTML page of the analyzer's report, figures embedded.
+
+The page shows the verdict first, then the evidence an engineer would check
+by eye: the fits (MSE of eq. 2.8), each signature against its threshold, the
+figures, and what was excluded from the record and why.
+"""
+
+import base64
+import html
+import json
+from pathlib import Path
+
+STYLE = """
+body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
+table { border-collapse: collapse; margin: 0.5em 0 1em; }
+td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; font-size: 14px; }
+th { background: #eee; }
+.yes { color: #b00; font-weight: bold; } .no { color: #070; } .und { color: #a60; }
+.verdict { font-size: 20px; padding: 8px; border: 2px solid #888; display: inline-block; }
+img { max-width: 100%; border: 1px solid #ddd; margin: 4px 0; }
+"""
+
+
+def _e(x):
+    return html.escape(str(x))
+
+
+def _num(x, digits=4):
+    if x is None:
+        return '-'
+    if isinstance(x, float):
+        return f'{x:.{digits}g}'
+    return _e(x)
+
+
+def _decision(flag):
+    if flag is None:
+        return '<span class="und">undetermined</span>'
+    return '<span class="yes">stiction</span>' if flag else '<span class="no">no stiction</span>'
+
+
+def _table(header, rows):
+    head = ''.join(f'<th>{_e(h)}</th>' for h in header)
+    body = ''.join('<tr>' + ''.join(f'<td>{c}</td>' for c in row) + '</tr>' for row in rows)
+    return f'<table><tr>{head}</tr>{body}</table>'
+
+
+def _img(path):
+    if not path or not Path(path).exists():
+        return ''
+    data = base64.b64encode(Path(path).read_bytes()).decode('ascii')
+    return f'<p><img alt="{_e(Path(path).name)}" src="data:image/png;base64,{data}"></p>'
+
+
+def render(report, figures):
+    """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
+    st = report.get('stiction', {})
+    verdict = ('STICTION DETECTED' if st.get('detected')
+               else 'no stiction detected' if st.get('detected') is False else 'inconclusive')
+    parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>stiction report: '
+             f'{_e(report.get("name") or report["input"].get("path"))}</title>'
+             f'<style>{STYLE}</style></head><body>',
+             f'<h1>Valve stiction report: {_e(report.get("name") or "")}</h1>',
+             f'<p>Input: <code>{_e(report["input"].get("path"))}</code> '
+             f'({_e(report["input"].get("format"))}); {report["samples"]} samples at '
+             f'{_num(report["sample_time"])} s, {report["valid_samples"]} valid; signals: '
+             f'{_e(", ".join(report["signals"]))}; {_e(report.get("loop_type", ""))} loop.</p>',
+             f'<p class="verdict">{verdict} &mdash; score {_num(st.get("score"), 3)}'
+             f' (0 = none, 1 = certain); apparent S {_num(st.get("apparent_S"), 3)} %</p>',
+             f'<p>{_e(st.get("reason", ""))}</p>']
+    if report.get('fits'):
+        rows = [[_e(f['model']), _num(f['S']), _num(f['J']), _num(f['mse']), _e(f['source']),
+                 _e(f.get('S_interval', '-')), _e(f.get('J_interval', '-'))]
+                for f in report['fits']]
+        parts += ['<h2>Model fits (MSE of eq. 2.8 against the measured MV)</h2>',
+                  _table(['model', 'S (%)', 'J (%)', 'MSE', 'source', 'S 95 % range',
+                          'J 95 % range'], rows)]
+    osc = st.get('oscillation')
+    if osc:
+        parts.append(f'<h2>Oscillation</h2><p>{_e(json.dumps(osc))}</p>')
+    sigs = st.get('signatures', {})
+    if sigs:
+        rows = [[_e(name), _num(s.get('value')), _num(s.get('threshold')),
+                 _decision(s.get('stiction')), _e(s.get('reason', ''))]
+                for name, s in sigs.items()]
+        parts += ['<h2>Signatures (OP and PV only)</h2>',
+                  _table(['signature', 'value', 'threshold', 'decision', 'why'], rows)]
+    ham = st.get('hammerstein')
+    if ham:
+        parts.append(f'<h2>Hammerstein quantification</h2><p>{_e(json.dumps(ham))}</p>')
+    parts.append('<h2>Figures</h2>')
+    parts += [_img(p) for p in figures]
+    if report.get('excluded'):
+        rows = [[_num(x.get('start_s')), _num(x.get('end_s')), _e(x.get('samples')),
+                 _e(x.get('reason'))] for x in report['excluded']]
+        parts += ['<h2>Excluded from the analysis</h2>',
+                  _table(['from (s)', 'to (s)', 'samples', 'reason'], rows)]
+    if report.get('notes'):
+        parts.append('<h2>Notes</h2><ul>' + ''.join(f'<li>{_e(n)}</li>' for n in report['notes'])
+                     + '</ul>')
+    parts.append('</body></html>')
+    return '\n'.join(parts)

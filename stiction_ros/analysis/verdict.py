@@ -1,0 +1,69 @@
+"""
+The combined verdict: is the valve sticking, with a score from 0 to 1.
+
+With a measured valve position the answer comes from the fits: the valve
+sticks when the identified S is clearly above zero (its 95 % range starts
+above ``MIN_S``) and the stiction model explains the MV much better than an
+ideal valve does.  Without it, the OP/PV signatures vote: each decided
+signature counts 1 for stiction and 0 against, weighted by ``WEIGHTS``; an
+undetermined one does not vote.  ``score`` is the weighted mean of the votes
+and stiction is reported when it reaches ``THRESHOLD`` in a regularly
+oscillating loop.  The weights and the threshold are the ones whose
+cross-validated accuracy on the real plant loops is in ``docs/ACCURACY.md``.
+"""
+
+MIN_S = 0.2
+MIN_IMPROVEMENT = 0.5
+WEIGHTS = {'horch': 1.0, 'he_curve_fit': 1.0, 'hos_pv_op': 1.0, 'yamashita': 1.0}
+THRESHOLD = 0.5
+
+
+def from_fits(fits):
+    """Return (detected, score, S, reason) from the model fits."""
+    best = min(fits, key=lambda f: f['mse'])
+    improvement = best.get('improvement')
+    lo = best.get('S_interval', [best['S']])[0]
+    score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
+    detected = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
+    why = (f'{best["model"]} fits the measured MV with S = {best["S"]:.2f} % '
+           f'(95 % range from {lo:.2f}), J = {best["J"]:.2f} %, MSE {best["mse"]:.4g}')
+    if improvement is not None:
+        why += f', {100 * improvement:.0f} % below the MSE of an ideal valve'
+    return detected, score, best['S'], why
+
+
+def from_signatures(osc, sigs, weights=None, threshold=None):
+    """Return (detected, score, reason) from the OP/PV signatures."""
+    weights = WEIGHTS if weights is None else weights
+    threshold = THRESHOLD if threshold is None else threshold
+    votes = {n: s.stiction for n, s in sigs.items() if s.stiction is not None}
+    total = sum(weights.get(n, 0.0) for n in votes)
+    if total == 0.0:
+        return None, 0.0, 'no signature could decide'
+    score = sum(weights.get(n, 0.0) for n, v in votes.items() if v) / total
+    said = ', '.join(f'{n} {"yes" if v else "no"}' for n, v in votes.items())
+    if osc is not None and not osc.oscillating:
+        return False, score, f'no regular oscillation; signatures: {said}'
+    return score >= threshold, score, f'signatures: {said} (score {score:.2f})'
+
+
+def combine(osc, sigs, fits, hammerstein=None):
+    """Return the report's ``stiction`` section."""
+    apparent = None
+    ell = sigs.get('ellipse')
+    if ell is not None and ell.value is not None:
+        apparent = ell.value
+    if fits:
+        detected, score, size, why = from_fits(fits)
+        apparent = size
+    else:
+        detected, score, why = from_signatures(osc, sigs)
+        if hammerstein is not None and getattr(hammerstein, 'reliable', False):
+            apparent = hammerstein.S
+    out = {'detected': detected, 'score': round(float(score), 4), 'apparent_S': apparent,
+           'reason': why,
+           'oscillation': osc.to_json() if osc is not None else None,
+           'signatures': {n: s.to_json() for n, s in sigs.items()}}
+    if hammerstein is not None:
+        out['hammerstein'] = hammerstein.to_json()
+    return out

@@ -1,0 +1,166 @@
+"""
+stiction-analyze: is this valve sticking, how much, and how well do the models fit.
+
+    stiction-analyze INPUT [--model kano|choudhury|both] [--S S --J J]
+                     [--fit-filter] [--window T0 T1] [--namespace NS]
+                     [--loop-type auto|self-regulating|integrating]
+                     [--json REPORT.json] [--html REPORT.html]
+
+INPUT is a rosbag2 directory or .mcap file, a CSV (t, op and any of mv, pv,
+sp) or a historian export.  Problems with the input end in one line on stderr
+and exit status 2.
+"""
+
+import argparse
+import json
+import math
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+
+from stiction_ros.analysis.identify import IdentifyError
+from stiction_ros.analysis.record import InputError
+
+EXIT_INPUT = 2
+
+
+def _jsonable(x):
+    """Return ``x`` with numpy scalars, tuples and non-finite floats made JSON-safe."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    return x
+
+
+def to_json_text(report):
+    """Return the report as indented JSON (NaN written as null)."""
+    return json.dumps(_jsonable(report), indent=2, ensure_ascii=False, allow_nan=False)
+
+
+def parser():
+    """Return the argument parser."""
+    p = argparse.ArgumentParser(prog='stiction-analyze', description=__doc__.split('\n')[1])
+    p.add_argument('input', help='rosbag2 directory, .mcap file, CSV or historian export')
+    p.add_argument('--model', default='both', choices=('kano', 'choudhury', 'both'),
+                   help='model(s) to fit when MV is present (default both)')
+    p.add_argument('--S', type=float, help='use this S (%%) instead of identifying it')
+    p.add_argument('--J', type=float, help='use this J (%%) instead of identifying it')
+    p.add_argument('--fit-filter', action='store_true',
+                   help='also identify the air-chamber lag (kano) or EWMA weight (choudhury)')
+    p.add_argument('--window', nargs=2, type=float, metavar=('T0', 'T1'),
+                   help='analyse only T0 <= t <= T1, seconds from the start of the record')
+    p.add_argument('--namespace', help='namespace of the loop topics in a bag, e.g. /loop1')
+    p.add_argument('--loop-type', default='auto',
+                   choices=('auto', 'self-regulating', 'integrating'),
+                   help='auto: integrating when the tag names a level loop (LIC)')
+    p.add_argument('--no-hammerstein', action='store_true',
+                   help='skip the Hammerstein quantification of S and J from OP and PV')
+    p.add_argument('--json', dest='json_path', metavar='REPORT.json', help='write the report')
+    p.add_argument('--html', dest='html_path', metavar='REPORT.html',
+                   help='write the HTML report (figures embedded, PNGs beside it)')
+    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    return p
+
+
+def run(args, say):
+    """Analyse as ``args`` asks; return the report dict."""
+    return run_analysis(args, say).report
+
+
+def run_analysis(args, say):
+    """Analyse as ``args`` asks, write what it asks for; return the :class:`Analysis`."""
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.readers import load_record
+    t0 = time.perf_counter()
+    options = Options(model=args.model, S=args.S, J=args.J, fit_filter=args.fit_filter,
+                      loop_type=args.loop_type, hammerstein=not args.no_hammerstein)
+    say(f'reading {args.input}')
+    record = load_record(args.input, namespace=args.namespace,
+                         window=tuple(args.window) if args.window else None)
+    say(f'{record.samples} samples at {record.sample_time:g} s, signals '
+        f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
+    analysis = analyze(record, options,
+                       progress=lambda level, n: say(f'  search level {level}: {n} evaluations'))
+    report = analysis.report
+    report['elapsed_s'] = round(time.perf_counter() - t0, 3)
+    if args.json_path:
+        write_text(args.json_path, to_json_text(report))
+        say(f'wrote {args.json_path}')
+    if args.html_path:
+        write_html(analysis, args.html_path, say)
+    return analysis
+
+
+def write_text(path, text):
+    """Write ``text`` to ``path``, creating its folder."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text + '\n', encoding='utf-8')
+
+
+def write_html(analysis, path, say):
+    """Write the figures beside ``path`` and the HTML page embedding them."""
+    from stiction_ros.analysis import figures
+    from stiction_ros.analysis.identify import mse_landscape
+    from stiction_ros.analysis.report_html import render
+    from stiction_ros.analysis.signatures.plots import signature_figure
+    html_path = Path(path)
+    fig_dir = html_path.with_name(html_path.stem + '_figures')
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    rec = analysis.record
+    paths = [figures.trends_figure(analysis, fig_dir / 'trends.png'),
+             figures.maps_figure(analysis, fig_dir / 'maps.png')]
+    if analysis.signatures:
+        from stiction_ros.analysis.pipeline import held_signals
+        a, b, _ = analysis.signature_window
+        x = held_signals(rec, a, b)
+        paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
+                                      fig_dir / 'signatures.png'))
+    for fit in analysis.fits:
+        if fit.source == 'identified':
+            land = mse_landscape(rec.signals['op'], rec.signals['mv'], fit,
+                                 rec.segments(min_samples=2), rec.sample_time)
+            paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{fit.model}.png'))
+    write_text(html_path, render(analysis.report, [p for p in paths if p]))
+    say(f'wrote {html_path} (figures in {fig_dir})')
+
+
+def summary_line(report):
+    """Return the one-line verdict printed at the end."""
+    st = report['stiction']
+    word = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[st['detected']]
+    fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
+                     for f in report['fits'])
+    return f'{report.get("name") or report["input"].get("path")}: {word} (score ' \
+           f'{st["score"]:.2f})' + (f'; {fits}' if fits else '')
+
+
+def main(argv=None):
+    """Entry point of ``stiction-analyze``."""
+    args = parser().parse_args(argv)
+
+    def say(msg):
+        if not args.quiet:
+            print(msg, file=sys.stderr, flush=True)
+    try:
+        report = run(args, say)
+    except (InputError, IdentifyError, ValueError, OSError) as exc:
+        print(f'stiction-analyze: error: {exc}', file=sys.stderr)
+        return EXIT_INPUT
+    print(summary_line(report))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,146 @@
+"""
+stiction-analyze from the command line: reports on CSVs and historian files, and bad inputs.
+
+The command runs as a subprocess, as an engineer runs it; its JSON report is
+checked against the truth of the simulation that made the CSV.
+"""
+
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from stiction_ros.closed_loop import simulate_loop, write_csv
+from stiction_ros.loop_config import load_loop
+from stiction_ros.models import create
+from stiction_ros.paths import config_file
+from test_analysis_inputs import write_bag
+
+PLANT_LOOPS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'plant_loops'
+
+
+def analyze(*args):
+    return subprocess.run([sys.executable, '-m', 'stiction_ros.cli.analyze', *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def loop_csv(path, model='kano', S=3.47, J=1.23, duration=3000, seed=1, **over):
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'valve': {'model': model, 'S': S, 'J': J},
+        'noise': {'pv_std': 0.02, 'mv_std': 0.1, 'seed': seed},
+        'duration': float(duration), **over})
+    data = simulate_loop(cfg)
+    write_csv(path, data)
+    return data
+
+
+@pytest.fixture(scope='module')
+def sticky(tmp_path_factory):
+    d = tmp_path_factory.mktemp('sticky')
+    data = loop_csv(d / 'loop.csv')
+    res = analyze(d / 'loop.csv', '--json', d / 'r.json', '--html', d / 'r.html')
+    assert res.returncode == 0, res.stderr
+    return d, data, json.loads((d / 'r.json').read_text()), res
+
+
+def test_report_fields_and_identified_S_J_on_a_noisy_closed_loop_csv(sticky):
+    d, data, rep, res = sticky
+    assert rep['samples'] == len(data['t']) and rep['sample_time'] == 1.0
+    assert rep['signals'] == ['op', 'mv', 'pv', 'sp']
+    assert [f['model'] for f in rep['fits']] == ['kano', 'choudhury']
+    for f in rep['fits']:
+        assert f['source'] == 'identified'
+        assert abs(f['S'] - 3.47) <= 0.1 and abs(f['J'] - 1.23) <= 0.1
+        assert f['S_interval'][0] <= 3.47 <= f['S_interval'][1]
+        # the fit leaves the MV noise (std 0.1) and little else
+        assert f['mse'] < 0.0125 < f['ideal_valve_mse']
+    st = rep['stiction']
+    assert st['detected'] is True and 0.0 <= st['score'] <= 1.0
+    assert set(st['signatures']) >= {'horch', 'he_curve_fit', 'bicoherence', 'ellipse'}
+    assert 'stiction' in res.stdout and 'kano S=3.47' in res.stdout
+
+
+def test_html_report_embeds_the_figures(sticky):
+    d = sticky[0]
+    html = (d / 'r.html').read_text()
+    assert html.count('data:image/png;base64,') >= 4
+    figs = sorted(p.name for p in (d / 'r_figures').glob('*.png'))
+    assert {'trends.png', 'maps.png', 'signatures.png', 'landscape_kano.png'} <= set(figs)
+
+
+def test_given_S_and_J_report_the_mse_of_equation_2_8(tmp_path):
+    data = loop_csv(tmp_path / 'loop.csv', duration=1500)
+    res = analyze(tmp_path / 'loop.csv', '--model', 'choudhury', '--S', '5', '--J', '2',
+                  '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    (fit,) = json.loads((tmp_path / 'r.json').read_text())['fits']
+    mv_hat = create('choudhury', S=5.0, J=2.0).simulate(data['op'], y0=data['mv'][0])
+    assert fit['source'] == 'given' and (fit['S'], fit['J']) == (5.0, 2.0)
+    # the CSV holds about 9 significant digits, hence the tolerance
+    assert fit['mse'] == pytest.approx(np.mean((data['mv'] - mv_hat) ** 2), rel=1e-6)
+
+
+def test_a_healthy_valve_is_not_called_sticky(tmp_path):
+    loop_csv(tmp_path / 'loop.csv', S=0.0, J=0.0, duration=2000,
+             controller={'setpoint': {'type': 'sine', 'offset': 0, 'amplitude': 1,
+                                      'period': 150}})
+    res = analyze(tmp_path / 'loop.csv', '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    assert st['detected'] is False
+
+
+def test_window_option_limits_the_samples(tmp_path):
+    loop_csv(tmp_path / 'loop.csv', duration=1000)
+    res = analyze(tmp_path / 'loop.csv', '--window', 100, 599, '--model', 'kano',
+                  '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    assert json.loads((tmp_path / 'r.json').read_text())['samples'] == 500
+
+
+def test_a_plant_loop_historian_file_gives_json_and_html(tmp_path):
+    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC20102_0609*'))[0]
+    res = analyze(f, '--json', tmp_path / 'r.json', '--html', tmp_path / 'r.html')
+    assert res.returncode == 0, res.stderr
+    rep = json.loads((tmp_path / 'r.json').read_text())
+    assert rep['signals'] == ['op', 'pv', 'sp'] and rep['fits'] == []
+    assert rep['name'] == '2411FIC20102' and rep['loop_type'] == 'self-regulating'
+    assert isinstance(rep['stiction']['detected'], (bool, type(None)))
+    assert (tmp_path / 'r.html').stat().st_size > 10_000
+
+
+BAD = {
+    'empty.csv': ('', 'empty file'),
+    'no_op.csv': ('t,mv\n0,1\n1,2\n', "no 'op' column"),
+    'text.csv': ('t,op,mv\n0,1,1\n1,abc,2\n', "'abc' is not a number"),
+    'backwards.csv': ('t,op,mv\n0,1,1\n2,1,1\n1,1,1\n', 'does not increase'),
+}
+
+
+@pytest.mark.parametrize('name', sorted(BAD))
+def test_bad_input_is_one_line_and_exit_2(tmp_path, name):
+    text, why = BAD[name]
+    (tmp_path / name).write_text(text)
+    res = analyze(tmp_path / name, '--json', tmp_path / 'r.json')
+    assert res.returncode == 2
+    assert 'Traceback' not in res.stderr
+    last = res.stderr.strip().splitlines()[-1]
+    assert last.startswith('stiction-analyze: error:') and why in last and name in last
+    assert not (tmp_path / 'r.json').exists()
+
+
+def test_truncated_bag_is_analysed_from_its_readable_part(tmp_path):
+    data = loop_csv(tmp_path / 'unused.csv', duration=1200)
+    mcap = next(write_bag(tmp_path / 'bag', data, chunk_size=4096).glob('*.mcap'))
+    raw = mcap.read_bytes()
+    mcap.write_bytes(raw[: len(raw) * 2 // 3])
+    res = analyze(tmp_path / 'bag', '--model', 'kano', '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    rep = json.loads((tmp_path / 'r.json').read_text())
+    assert 100 < rep['samples'] < len(data['t'])
+    assert any('truncated' in n for n in rep['notes'])
+    (fit,) = rep['fits']
+    assert abs(fit['S'] - 3.47) <= 0.1 and abs(fit['J'] - 1.23) <= 0.1

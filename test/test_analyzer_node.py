@@ -1,0 +1,58 @@
+"""
+The analyzer node: reads a recording, writes the report, publishes the verdict on /diagnostics.
+
+A real rclpy subscriber with the same durability receives the
+``DiagnosticArray`` over DDS, as ``ros2 topic echo /diagnostics`` or
+rqt_runtime_monitor would.
+"""
+
+import json
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+import pytest
+from ros_helpers import start_node, wait_for
+from stiction_ros.nodes.analyzer_node import LATCHED
+from test_analyze_cli import loop_csv
+
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture
+def diagnostics(probe):
+    got = []
+    sub = probe.node.create_subscription(DiagnosticArray, '/diagnostics', got.append, LATCHED)
+    yield got
+    probe.node.destroy_subscription(sub)
+
+
+def finish(proc, timeout=120):
+    return proc.wait(timeout=timeout)
+
+
+def test_verdict_is_published_once_with_key_values_and_the_report_written(
+        diagnostics, tmp_path):
+    loop_csv(tmp_path / 'loop.csv', S=4.0, J=1.0, duration=2000)
+    proc = start_node('analyzer', {'input': str(tmp_path / 'loop.csv'), 'model': 'kano',
+                                   'report': str(tmp_path / 'r.json'), 'linger': 5.0},
+                      log_dir=str(tmp_path))
+    wait_for(lambda: diagnostics, timeout=120, what='a DiagnosticArray')
+    assert finish(proc) == 0, (tmp_path / 'analyzer.log').read_text()
+    (status,) = diagnostics[0].status
+    assert status.level == DiagnosticStatus.ERROR  # S of 4 % is above error_S (2 %)
+    assert 'stiction detected' in status.message
+    kv = {k.key: k.value for k in status.values}
+    assert abs(float(kv['kano.S']) - 4.0) <= 0.1 and abs(float(kv['kano.J']) - 1.0) <= 0.1
+    assert kv['detected'] == 'True'
+    report = json.loads((tmp_path / 'r.json').read_text())
+    assert report['fits'][0]['model'] == 'kano'
+    assert len(diagnostics) == 1
+
+
+def test_bad_input_publishes_an_error_and_exits_2(diagnostics, tmp_path):
+    (tmp_path / 'bad.csv').write_text('t,mv\n0,1\n1,2\n')
+    proc = start_node('analyzer', {'input': str(tmp_path / 'bad.csv'), 'linger': 3.0},
+                      log_dir=str(tmp_path))
+    wait_for(lambda: diagnostics, timeout=60, what='a DiagnosticArray')
+    assert finish(proc) == 2
+    (status,) = diagnostics[0].status
+    assert status.level == DiagnosticStatus.ERROR and "no 'op' column" in status.message
