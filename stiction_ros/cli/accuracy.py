@@ -68,6 +68,9 @@ def markdown(cases, chosen, cv_pred, data_dir):
     rows.append(_cm_row('**combined verdict, leave-one-loop-out CV**',
                         confusion(truth, cv_pred)))
     groups = sorted({c['group'] for c in cases})
+    oscillating = [bool(c['oscillation'] and c['oscillation'].oscillating) for c in cases]
+    osc_pos = sum(o for o, t in zip(oscillating, truth) if t)
+    osc_neg = sum(o for o, t in zip(oscillating, truth) if not t)
     lines = [
         '# Accuracy on the labelled plant loops',
         '',
@@ -84,6 +87,16 @@ def markdown(cases, chosen, cv_pred, data_dir):
         '| method | TP | FN | FP | TN | balanced accuracy |',
         '|---|---|---|---|---|---|',
         *rows,
+        '',
+        '## Why the figure is what it is',
+        '',
+        f'Only {osc_pos} of {sum(truth)} sticky and {osc_neg} of {len(truth) - sum(truth)} '
+        'healthy records hold a regular oscillation (Thornhill regularity > 1 on SP - PV).',
+        'Horch, He and the PV-OP ellipse need one by definition, so on the others they',
+        'cannot decide and the verdict is "no stiction": specificity is high, sensitivity',
+        'low. The sticky records mostly show one or two slow stick-slip events in two hours.',
+        "Yamashita's index needs no oscillation but also fires on healthy loops whose PV is",
+        'noisy relative to OP. Records whose PV never varies cannot be judged from OP/PV.',
         '',
         '## Per file',
         '',
