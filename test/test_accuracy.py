@@ -1,4 +1,4 @@
-"""Scoring and the leave-one-loop-out protocol of docs/ACCURACY.md, on cases with a known answer."""
+"""Scoring and the leave-one-loop-out protocol of docs/ACCURACY.md, on known cases."""
 
 from types import SimpleNamespace
 

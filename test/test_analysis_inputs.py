@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 import struct
 
+from data_paths import plant_loops_dir
 import numpy as np
 import pytest
 from stiction_ros.analysis.readers import detect_format, load_record
@@ -21,7 +22,7 @@ from stiction_ros.closed_loop import simulate_loop, write_csv
 from stiction_ros.loop_config import load_loop
 from stiction_ros.paths import config_file
 
-PLANT = Path('/work/shared/data/plant_loops')
+PLANT = plant_loops_dir() or Path('/nonexistent')
 PLANT_FILES = sorted(PLANT.glob('*/*.txt'))
 PHASES = {'pv': 0.25, 'op': 0.5, 'sp': 0.5, 'mv': 0.75}   # the live loop's publishers
 FLAGS = ('bOpOFL', 'bPvOFL', 'bSpOFL', 'bAutOFL')
