@@ -12,6 +12,7 @@ import re
 import numpy as np
 
 from stiction_ros.analysis.identify import given_fit, identify, IdentifyError
+from stiction_ros.analysis.record import runs
 from stiction_ros.analysis.verdict import combine
 from stiction_ros.models import create
 
@@ -64,6 +65,7 @@ class Analysis:
     oscillation: object = None
     signatures: dict = field(default_factory=dict)
     signature_window: tuple | None = None
+    signature_inputs: dict | None = None
     landscape: dict | None = None
 
 
@@ -125,7 +127,7 @@ def predict(model, fit, op, mv, segments, sample_time):
 
 def bridged_valid(record, max_gap=MAX_BRIDGE):
     """
-    Return (valid mask, samples held) with runs of at most ``max_gap`` invalid samples bridged.
+    Return the valid mask with interior runs of at most ``max_gap`` invalid samples bridged.
 
     Only the OP/PV signatures use this: correlation, curve fitting and
     spectra need contiguous samples, and historian exports flag single
@@ -133,43 +135,23 @@ def bridged_valid(record, max_gap=MAX_BRIDGE):
     value; the fits never bridge anything.
     """
     valid = record.valid.copy()
-    held = 0
-    k, n = 0, len(valid)
-    while k < n:
-        if valid[k]:
-            k += 1
-            continue
-        stop = k
-        while stop < n and not valid[stop]:
-            stop += 1
-        if 0 < k and stop < n and stop - k <= max_gap:
-            valid[k:stop] = True
-            held += stop - k
-        k = stop
-    return valid, held
+    for a, b in runs(~record.valid):
+        if 0 < a and b < len(valid) and b - a <= max_gap:
+            valid[a:b] = True
+    return valid
 
 
 def signature_window(record):
     """Return (start, stop, samples held) of the longest stretch for the signatures, or None."""
     if not (record.has('op') and record.has('pv')):
         return None
-    valid, _ = bridged_valid(record)
-    best = None
-    k, n = 0, len(valid)
-    while k < n:
-        if not valid[k]:
-            k += 1
-            continue
-        stop = k
-        while stop < n and valid[stop]:
-            stop += 1
-        if best is None or stop - k > best[1] - best[0]:
-            best = (k, stop)
-        k = stop
-    if best is None or best[1] - best[0] < MIN_SIGNATURE_SAMPLES:
+    stretches = runs(bridged_valid(record))
+    if not stretches:
         return None
-    held = int(np.sum(~record.valid[best[0]:best[1]]))
-    return best[0], best[1], held
+    a, b = max(stretches, key=lambda r: r[1] - r[0])
+    if b - a < MIN_SIGNATURE_SAMPLES:
+        return None
+    return a, b, int(np.sum(~record.valid[a:b]))
 
 
 def held_signals(record, a, b):
@@ -188,24 +170,21 @@ def held_signals(record, a, b):
 
 
 def run_signatures(record, integrating):
-    """Return (oscillation, signatures dict, window) on the longest usable stretch."""
+    """Return (oscillation, signatures, window, held signals) on the longest usable stretch."""
     from stiction_ros.analysis.signatures.all import compute_signatures
     win = signature_window(record)
     if win is None:
-        return None, {}, None
-    a, b, _ = win
-    x = held_signals(record, a, b)
+        return None, {}, None, None
+    x = held_signals(record, win[0], win[1])
     osc, sigs = compute_signatures(x['op'], x['pv'], x['sp'], record.sample_time,
                                    integrating=integrating)
-    return osc, sigs, win
+    return osc, sigs, win, x
 
 
-def run_hammerstein(record, win, integrating):
-    """Return the Hammerstein quantification on the signature window, or None."""
+def run_hammerstein(held, sample_time, integrating):
+    """Return the Hammerstein quantification on the signatures' stretch."""
     from stiction_ros.analysis.hammerstein import quantify
-    a, b, _ = win
-    x = held_signals(record, a, b)
-    return quantify(x['op'], x['pv'], record.sample_time, integrating=integrating)
+    return quantify(held['op'], held['pv'], sample_time, integrating=integrating)
 
 
 def analyze(record, options=None, progress=None):
@@ -232,8 +211,9 @@ def analyze(record, options=None, progress=None):
     integrating, why = is_integrating(record, options.loop_type)
     report['loop_type'] = 'integrating' if integrating else 'self-regulating'
     notes.append(why)
-    osc, sigs, win = run_signatures(record, integrating)
-    analysis.oscillation, analysis.signatures, analysis.signature_window = osc, sigs, win
+    osc, sigs, win, held = run_signatures(record, integrating)
+    analysis.oscillation, analysis.signatures = osc, sigs
+    analysis.signature_window, analysis.signature_inputs = win, held
     if win is None:
         notes.append(f'signatures skipped: they need OP and PV over at least '
                      f'{MIN_SIGNATURE_SAMPLES} contiguous valid samples')
@@ -247,7 +227,7 @@ def analyze(record, options=None, progress=None):
                          f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
     ham = None
     if win is not None and options.hammerstein and not record.has('mv'):
-        ham = run_hammerstein(record, win, integrating)
+        ham = run_hammerstein(held, record.sample_time, integrating)
     report['stiction'] = combine(osc, sigs, report['fits'], ham)
     report['notes'] = notes
     return analysis

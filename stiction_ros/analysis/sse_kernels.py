@@ -43,38 +43,41 @@ def _breakaway(d, rel, S, J):
 
 
 @njit(cache=True)
+def _kano_step(uraw, a, S, J, fd, uf, u1, u2, us, resting, d, yk):
+    # One sample of Kano's model; the state travels as a tuple so that numba
+    # keeps it in registers.  Returns the new (uf, u1, u2, us, resting, d, yk).
+    uf = a * uf + (1.0 - a) * uraw
+    uk = _clip(uf)
+    if not resting and (uk - u1) * (u1 - u2) <= 0.0:
+        us = u1
+        resting = True
+    if resting:
+        nd = _breakaway(d, uk - us, S, J)
+        if nd != 0.0:
+            d = nd
+            resting = False
+    if not resting:
+        yk = _clip(uk - d * fd)
+    return uf, uk, u1, us, resting, d, yk
+
+
+@njit(cache=True)
 def kano_sse(u, y, starts, stops, S, J, a, limit):
     """Return the SSE of Kano's model (air-chamber pole ``a``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
     sse = 0.0
     for s in range(starts.shape[0]):
         i0 = starts[s]
-        yk = y[i0]
         uf = u[i0]
         u1 = _clip(uf)
-        u2 = u1
-        us = u1
-        resting = True
-        d = 0.0
+        u2, us, resting, d, yk = u1, u1, True, 0.0, y[i0]
         for k in range(i0, stops[s]):
-            uf = a * uf + (1.0 - a) * u[k]
-            uk = _clip(uf)
-            if not resting and (uk - u1) * (u1 - u2) <= 0.0:
-                us = u1
-                resting = True
-            if resting:
-                nd = _breakaway(d, uk - us, S, J)
-                if nd != 0.0:
-                    d = nd
-                    resting = False
-            if not resting:
-                yk = _clip(uk - d * fd)
+            uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2, us,
+                                                        resting, d, yk)
             e = yk - y[k]
             sse += e * e
             if sse > limit:
                 return sse
-            u2 = u1
-            u1 = uk
     return sse
 
 
@@ -140,27 +143,11 @@ def kano_output(u, y0, S, J, a):
     """Return Kano's output for input ``u``, at rest at ``y0`` before the first sample."""
     y = np.empty(u.shape[0])
     fd = 0.5 * (S - J)
-    yk = y0
     uf = u[0]
     u1 = _clip(uf)
-    u2 = u1
-    us = u1
-    resting = True
-    d = 0.0
+    u2, us, resting, d, yk = u1, u1, True, 0.0, y0
     for k in range(u.shape[0]):
-        uf = a * uf + (1.0 - a) * u[k]
-        uk = _clip(uf)
-        if not resting and (uk - u1) * (u1 - u2) <= 0.0:
-            us = u1
-            resting = True
-        if resting:
-            nd = _breakaway(d, uk - us, S, J)
-            if nd != 0.0:
-                d = nd
-                resting = False
-        if not resting:
-            yk = _clip(uk - d * fd)
+        uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2, us,
+                                                    resting, d, yk)
         y[k] = yk
-        u2 = u1
-        u1 = uk
     return y

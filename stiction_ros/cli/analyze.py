@@ -122,9 +122,7 @@ def write_html(analysis, path, say):
     paths = [figures.trends_figure(analysis, fig_dir / 'trends.png'),
              figures.maps_figure(analysis, fig_dir / 'maps.png')]
     if analysis.signatures:
-        from stiction_ros.analysis.pipeline import held_signals
-        a, b, _ = analysis.signature_window
-        x = held_signals(rec, a, b)
+        x = analysis.signature_inputs
         paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
                                       fig_dir / 'signatures.png'))
     for fit in analysis.fits:
