@@ -303,7 +303,7 @@ def test_compute_signatures_on_a_sticky_loop(tmp_path):
     osc, sigs = compute_signatures(d['op'], d['pv'], d['sp'], 1.0)
     assert osc.oscillating and osc.period_s == pytest.approx(144, rel=0.05)
     assert list(sigs) == ['horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op',
-                          'yamashita']
+                          'yamashita', 'slip_events']
     assert sigs['horch'].stiction is True and sigs['he_curve_fit'].stiction is True
     assert sigs['ellipse'].value > sigs['ellipse'].threshold
     json.dumps({k: s.to_json() for k, s in sigs.items()}, allow_nan=False)

@@ -5,8 +5,9 @@ The oscillation is detected on the control error SP - PV (Thornhill, Huang
 and Zhang 2003, J. Process Control 13, 91-100); its period feeds the
 signatures that need one.  Without a regular oscillation those return
 stiction=None with the reason 'no regular oscillation'; the bicoherence test
-(Choudhury, Shah and Thornhill 2004, Automatica 40, 1719-1728) needs none
-and always runs.  See each module for its paper and thresholds.
+(Choudhury, Shah and Thornhill 2004, Automatica 40, 1719-1728), Yamashita's
+index and the slip-event test need none and always run.  See each module
+for its paper and thresholds.
 """
 
 import numpy as np
@@ -16,6 +17,7 @@ from stiction_ros.analysis.signatures import bicoherence as bic
 from stiction_ros.analysis.signatures import ellipse as ell
 from stiction_ros.analysis.signatures import he_curve_fit as he
 from stiction_ros.analysis.signatures import horch as hor
+from stiction_ros.analysis.signatures import slip_events as slip
 from stiction_ros.analysis.signatures import yamashita as yam
 from stiction_ros.analysis.signatures.result import Signature
 
@@ -34,9 +36,9 @@ def compute_signatures(op, pv, sp, sample_time, integrating=False):
 
     ``oscillation`` is the :class:`OscillationResult` of SP - PV;
     ``signatures`` maps 'horch', 'he_curve_fit', 'bicoherence', 'ellipse' and
-    'hos_pv_op' (bicoherence combined with the PV-OP ellipse) and 'yamashita' to their
-    :class:`Signature`.  ``sp`` may be a scalar.  ``integrating`` is True for
-    a process with an integrator (e.g. a level loop).
+    'hos_pv_op' (bicoherence combined with the PV-OP ellipse), 'yamashita' and
+    'slip_events' to their :class:`Signature`.  ``sp`` may be a scalar.
+    ``integrating`` is True for a process with an integrator (e.g. a level loop).
     """
     op, pv = as_signal(op), as_signal(pv)
     if sp is None:
@@ -65,5 +67,7 @@ def compute_signatures(op, pv, sp, sample_time, integrating=False):
                                    f'no regular oscillation ({osc.reason})', reference)
     # Yamashita's index needs no oscillation: slow stick-slip events suffice.
     sigs['yamashita'] = yam.yamashita(op, pv, sample_time, integrating=integrating)
-    order = ('horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op', 'yamashita')
+    sigs['slip_events'] = slip.slip_events(op, pv, sp, sample_time, integrating=integrating)
+    order = ('horch', 'he_curve_fit', 'bicoherence', 'ellipse', 'hos_pv_op', 'yamashita',
+             'slip_events')
     return osc, {name: sigs[name] for name in order}

@@ -94,6 +94,21 @@ def _ellipse(ax, sig, op, pv):
     ax.set_ylabel(sig.details.get('pv_signal', 'PV'))
 
 
+def _slips(ax, sig, op, pv, sample_time):
+    t = np.arange(len(pv)) * sample_time
+    ax.plot(t, pv, color='tab:red', lw=0.6, label='PV')
+    ax.set_xlabel('time (s)')
+    ax.set_ylabel('PV')
+    right = ax.twinx()
+    right.plot(t, op, color='tab:blue', lw=0.8, label='OP')
+    right.set_ylabel('OP (%)')
+    for k in sig.curves['event_samples']:
+        ax.axvline(t[k], color='k', ls='--', lw=0.9)
+    ax.text(0.02, 0.95, f'{len(sig.curves["event_samples"])} slip event(s) (dashed); '
+            f'{sig.details.get("jumps", 0)} PV jumps tested', transform=ax.transAxes,
+            va='top', fontsize=7)
+
+
 def _text(ax, sig):
     ax.axis('off')
     lines = [sig.reason] + [f'{k}: {_fmt(v) if isinstance(v, float) else v}'
@@ -118,6 +133,8 @@ def signature_figure(op, pv, sample_time, results, path, title='Stiction signatu
             _bicoherence(ax, sig)
         elif 'op_filtered' in c:
             _ellipse(ax, sig, op, pv)
+        elif 'event_samples' in c:
+            _slips(ax, sig, op, pv, sample_time)
         else:
             _text(ax, sig)
         _title(ax, sig)
