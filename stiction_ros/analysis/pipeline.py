@@ -67,6 +67,7 @@ class Analysis:
     signature_window: tuple | None = None
     signature_inputs: dict | None = None
     landscape: dict | None = None
+    explain_arrays: dict | None = None
 
 
 def is_integrating(record, loop_type):

@@ -66,6 +66,14 @@ def parser():
                    help='auto: integrating when the tag names a level loop (LIC)')
     p.add_argument('--no-hammerstein', action='store_true',
                    help='skip the Hammerstein quantification of S and J from OP and PV')
+    p.add_argument('--explain', action='store_true',
+                   help='needs MV: locate where the plain Kano model misses, name the missing '
+                        'physics (docs EFFECTS.md), fit it and compare held-out MSE')
+    p.add_argument('--holdout', type=float, default=0.3,
+                   help='share of samples at the end kept out of every fit and choice '
+                        '(default 0.3)')
+    p.add_argument('--bootstrap', type=int, default=3,
+                   help='effect-free replicates that calibrate the choice (default 3)')
     p.add_argument('--json', dest='json_path', metavar='REPORT.json', help='write the report')
     p.add_argument('--html', dest='html_path', metavar='REPORT.html',
                    help='write the HTML report (figures embedded, PNGs beside it)')
@@ -93,6 +101,8 @@ def run_analysis(args, say):
     analysis = analyze(record, options,
                        progress=lambda level, n: say(f'  search level {level}: {n} evaluations'))
     report = analysis.report
+    if getattr(args, 'explain', False):
+        run_explain(analysis, args, say)
     report['elapsed_s'] = round(time.perf_counter() - t0, 3)
     if args.json_path:
         write_text(args.json_path, to_json_text(report))
@@ -100,6 +110,22 @@ def run_analysis(args, say):
     if args.html_path:
         write_html(analysis, args.html_path, say)
     return analysis
+
+
+def run_explain(analysis, args, say):
+    """Add the ``--explain`` sections to the report of ``analysis``."""
+    from stiction_ros.analysis.mismatch.explain import explain
+    rec = analysis.record
+    if not rec.has('mv'):
+        raise ValueError('--explain needs the valve position (mv): the mismatch is measured '
+                         'between the model and the measured MV')
+    if args.bootstrap < 0:
+        raise ValueError(f'--bootstrap must be 0 or more, got {args.bootstrap}')
+    sections, arrays = explain(rec.t, rec.signals['op'], rec.signals['mv'],
+                               rec.segments(min_samples=2), rec.sample_time,
+                               holdout=args.holdout, reps=args.bootstrap, progress=say)
+    analysis.report.update(sections)
+    analysis.explain_arrays = arrays
 
 
 def write_text(path, text):
@@ -121,6 +147,10 @@ def write_html(analysis, path, say):
     rec = analysis.record
     paths = [figures.trends_figure(analysis, fig_dir / 'trends.png'),
              figures.maps_figure(analysis, fig_dir / 'maps.png')]
+    if getattr(analysis, 'explain_arrays', None) is not None:
+        from stiction_ros.analysis.mismatch.figures import mismatch_figure
+        paths.append(mismatch_figure(analysis.report, analysis.explain_arrays,
+                                     fig_dir / 'mismatch.png'))
     if analysis.signatures:
         x = analysis.signature_inputs
         paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
@@ -140,8 +170,14 @@ def summary_line(report):
     word = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[st['detected']]
     fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                      for f in report['fits'])
-    return f'{report.get("name") or report["input"].get("path")}: {word} (score ' \
+    line = f'{report.get("name") or report["input"].get("path")}: {word} (score ' \
            f'{st["score"]:.2f})' + (f'; {fits}' if fits else '')
+    if 'mismatch' in report:
+        m, b = report['mismatch'], report['baseline']
+        line += (f'\nmismatch: {m["effect"]} (confidence {m["confidence"]:.2f}): '
+                 f'{m["explanation"]}\nheld-out MSE: plain {b["mse_holdout"]:.4g} -> '
+                 f'explained {m["mse_holdout"]:.4g}')
+    return line
 
 
 def main(argv=None):

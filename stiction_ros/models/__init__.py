@@ -14,13 +14,15 @@ from stiction_ros.models.base import ModelError, ValveModel
 from stiction_ros.models.choudhury import Choudhury
 from stiction_ros.models.he import He
 from stiction_ros.models.kano import Kano
+from stiction_ros.models.kano_effects import KanoEffects
 from stiction_ros.models.linear import Linear
 from stiction_ros.models.physical import Physical
 from stiction_ros.models.stenman import Stenman
 
-MODELS = {cls.name: cls for cls in (Kano, Choudhury, Stenman, He, Physical, Linear)}
+MODELS = {cls.name: cls for cls in (Kano, Choudhury, Stenman, He, Physical, Linear,
+                                    KanoEffects)}
 
-__all__ = ['Choudhury', 'create', 'He', 'Kano', 'Linear', 'ModelError', 'MODELS',
+__all__ = ['Choudhury', 'create', 'He', 'Kano', 'KanoEffects', 'Linear', 'ModelError', 'MODELS',
            'Physical', 'Stenman', 'ValveModel']
 
 

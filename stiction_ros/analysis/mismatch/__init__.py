@@ -1,0 +1,1 @@
+"""Model-mismatch discovery: where a fitted stiction model and a recording disagree, and why."""

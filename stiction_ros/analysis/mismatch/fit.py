@@ -1,0 +1,176 @@
+"""
+Fitting one candidate effect: its parameters together with S and J.
+
+The landscape in (S, J) is piecewise constant and rugged, and an effect moves
+the best (S, J) (a dwell term takes static friction out of S, an actuator lag
+delays every breakaway).  So for each grid value of the effect's parameters
+the fit searches (S, J) coarse-to-fine in a window around the plain fit,
+keeps the best few effect values, refines (S, J) there to the 0.01 % grid
+and then bisects the effect parameter between its neighbours.  A fit that
+stops in the wrong basin would look like missing physics, so every stage
+keeps several candidates, and the plain model (effect at zero) is always
+among them: an extended fit is never worse than the plain one.
+"""
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+
+RESOLUTION = 0.01
+
+
+@dataclass
+class CandidateFit:
+    """The best parameters of one effect on the fitted part."""
+
+    effect: str
+    params: dict
+    S: float
+    J: float
+    sse: float
+    n: int
+    vector: np.ndarray = field(repr=False)
+    evaluations: int = 0
+
+    @property
+    def mse(self):
+        """Mean squared error on the fitted part."""
+        return self.sse / self.n
+
+
+START_SAMPLES = 10
+
+
+def start_positions(y, starts, stops):
+    """
+    Return the resting position each segment starts from.
+
+    A valve at rest holds still, so the median of the first few measured
+    samples is a better start than the first one alone, whose noise the
+    model would otherwise carry until the first breakaway.
+    """
+    return np.array([float(np.median(y[a:min(b, a + START_SAMPLES)]))
+                     for a, b in zip(starts, stops)])
+
+
+class Problem:
+    """OP and measured MV over the fitted segments, for the effects kernel."""
+
+    def __init__(self, op, mv, starts, stops):
+        self.u = np.ascontiguousarray(op, dtype=np.float64)
+        self.y = np.ascontiguousarray(mv, dtype=np.float64)
+        self.starts = np.asarray(starts, dtype=np.int64)
+        self.stops = np.asarray(stops, dtype=np.int64)
+        self.n = int(np.sum(self.stops - self.starts))
+        self.y0s = start_positions(self.y, self.starts, self.stops)
+        self.evaluations = 0
+
+    def grid(self, s_values, j_values, p, limit=math.inf):
+        """Return the SSE grid over (S, J) with effect vector ``p``."""
+        self.evaluations += len(s_values) * len(j_values)
+        return kk.kano_effects_grid(self.u, self.y, self.starts, self.stops, self.y0s,
+                                    np.asarray(s_values, dtype=np.float64),
+                                    np.asarray(j_values, dtype=np.float64), p, limit)
+
+    def sse(self, S, J, p):
+        """Return the SSE of one parameter set."""
+        self.evaluations += 1
+        return float(kk.kano_effects_sse(self.u, self.y, self.starts, self.stops, self.y0s,
+                                         S, J, p, math.inf))
+
+
+def _axis(centre, half, step):
+    lo = max(0.0, centre - half)
+    k0, k1 = math.floor(lo / RESOLUTION), math.ceil((centre + half) / RESOLUTION)
+    n = max(1, int(round((k1 - k0) * RESOLUTION / step)))
+    vals = np.unique(np.round(np.linspace(k0, k1, n + 1)) * RESOLUTION)
+    return vals[vals >= 0.0]
+
+
+def local_sj(problem, p, S0, J0, half_s, half_j, points=9, keep=3, coarse_only=False,
+             limit=math.inf):
+    """
+    Return (sse, S, J): a coarse-to-fine search of (S, J) in a window around (S0, J0).
+
+    Evaluations stop once past ``limit`` (nothing worse than it matters).
+    """
+    step = max(2 * max(half_s, half_j) / (points - 1), RESOLUTION)
+    s_ax, j_ax = _axis(S0, half_s, step), _axis(J0, half_j, step)
+    scores = problem.grid(s_ax, j_ax, p, limit)
+    best = _best(scores, s_ax, j_ax, keep)
+    if coarse_only:
+        return best[0]
+    while step > RESOLUTION:
+        fine = max(step / 4.0, RESOLUTION)
+        found = {(round(s / RESOLUTION), round(j / RESOLUTION)): (e, s, j) for e, s, j in best}
+        limit = best[-1][0]
+        for _, s0, j0 in list(best):
+            s_ax, j_ax = _axis(s0, step, fine), _axis(j0, step, fine)
+            for e, s, j in _best(problem.grid(s_ax, j_ax, p, limit), s_ax, j_ax, keep):
+                found.setdefault((round(s / RESOLUTION), round(j / RESOLUTION)), (e, s, j))
+        best = sorted(found.values())[:keep]
+        step = fine
+    return best[0]
+
+
+def _best(scores, s_ax, j_ax, keep):
+    flat = np.argsort(scores, axis=None)[:keep]
+    ii, jj = np.unravel_index(flat, scores.shape)
+    return [(float(scores[i, j]), float(s_ax[i]), float(j_ax[j])) for i, j in zip(ii, jj)]
+
+
+def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
+    """Return the :class:`CandidateFit` of ``effect`` (never worse than the plain fit)."""
+    half_s = max(0.35 * S0, 0.3)
+    half_j = max(0.35 * S0, 0.3)
+    thetas = effect.grid(ctx)
+    coarse = []
+    for theta in thetas:
+        p = effect.vector(theta, ctx)
+        # Only what beats the plain fit matters, so nothing is summed past it.
+        sse, s, j = local_sj(problem, p, S0, J0, half_s, half_j, coarse_only=True,
+                             limit=plain_sse)
+        coarse.append((sse, theta, s, j))
+    coarse.sort(key=lambda x: x[0])
+    results = []
+    for sse, theta, s, j in coarse[:keep]:
+        p = effect.vector(theta, ctx)
+        results.append((*local_sj(problem, p, s, j, half_s / 4, half_j / 4,
+                                  limit=plain_sse), theta))
+    best = min(results, key=lambda x: x[0])
+    if len(effect.names) == 1:
+        best = _bisect(problem, effect, ctx, best, sorted(t[0] for t in thetas))
+    sse, S, J, theta = best
+    if sse >= plain_sse:
+        theta = tuple(0.0 for _ in effect.names)
+        sse, S, J = plain_sse, S0, J0
+        vector = kk.plain_params()
+    else:
+        vector = effect.vector(theta, ctx)
+    return CandidateFit(effect.eid, dict(zip(effect.names, (float(v) for v in theta))),
+                        float(S), float(J), float(sse), problem.n, vector,
+                        problem.evaluations)
+
+
+def _bisect(problem, effect, ctx, best, axis, rounds=3):
+    # Halve the distance to the better neighbour a few times.
+    sse, S, J, (v,) = best
+    i = int(np.argmin(np.abs(np.asarray(axis) - v)))
+    lo = axis[i - 1] if i > 0 else v
+    hi = axis[i + 1] if i + 1 < len(axis) else v
+    for _ in range(rounds):
+        tries = []
+        for cand in (0.5 * (lo + v), 0.5 * (v + hi)):
+            if cand == v:
+                continue
+            p = effect.vector((cand,), ctx)
+            e, s, j = local_sj(problem, p, S, J, 0.1, 0.1, points=5, keep=2, limit=sse)
+            tries.append((e, s, j, cand))
+        for e, s, j, cand in tries:
+            if e < sse:
+                sse, S, J, v = e, s, j, cand
+        lo, hi = 0.5 * (lo + v), 0.5 * (v + hi)
+    return sse, S, J, (v,)

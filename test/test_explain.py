@@ -1,0 +1,124 @@
+"""--explain: nested effect models, the choice of the missing physics, and the report contract."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.analysis.mismatch.effects import Context, EFFECTS, IDS
+from stiction_ros.analysis.mismatch.explain import explain
+from stiction_ros.closed_loop import write_csv
+from stiction_ros.concealed_cases import concealed_case, SIZES
+from stiction_ros.models import create
+
+
+def op_walk(n=6000, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.clip(50 + np.cumsum(rng.normal(0, 0.6, n)), 0, 100)
+
+
+def test_every_effect_at_zero_is_kanos_model_sample_for_sample():
+    u = op_walk()
+    plain = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0)
+    ctx = Context(1.0, len(u), 50.0, 3.0)
+    out, rest = np.empty(len(u)), np.empty(len(u))
+    for effect in EFFECTS:
+        p = effect.vector(tuple(0.0 for _ in effect.names), ctx)
+        kk.kano_effects_output(u, np.array([0]), np.array([len(u)]), np.array([50.0]),
+                               3.0, 1.0, p, out, rest)
+        assert np.array_equal(out, plain), effect.eid
+
+
+@pytest.mark.parametrize('effect', sorted(set(SIZES) - {'none'}))
+def test_the_valve_model_steps_as_it_simulates_and_each_effect_changes_it(effect):
+    u = op_walk(3000)
+    size = {name: 0.5 * (lo + hi) for name, (lo, hi) in SIZES[effect].items()}
+    valve = create('kano_effects', S=3.0, J=1.0, effect=effect, **size)
+    whole = valve.simulate(u, y0=50.0)
+    valve.reset(y0=50.0)
+    assert np.array_equal(whole, [valve.step(x) for x in u])
+    plain = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0)
+    assert np.max(np.abs(whole - plain)) > 0.1
+
+
+def test_dwell_law_needs_more_travel_after_a_longer_rest():
+    # Physics: breakaway after a long rest takes more OP travel than after a short one.
+    # (The rest includes the time OP spends crossing the band, so OP reverses fast.)
+    valve = create('kano_effects', S=2.0, J=0.5, effect='dwell_time_breakaway',
+                   dwell_gain=0.5, dwell_time=50.0)
+
+    def travel_to_break(rest):
+        u = np.concatenate([np.linspace(50, 55, 50), np.full(rest, 55.0),
+                            55.0 - 0.05 * np.arange(1, 200)])
+        y = valve.simulate(u, y0=50.0)
+        stuck = y[50 + rest]
+        k = np.flatnonzero(np.abs(y[50 + rest:] - stuck) > 1e-9)[0]
+        return 0.05 * k
+    short, long_ = travel_to_break(5), travel_to_break(500)
+    assert long_ > short + 0.3
+
+
+@pytest.fixture(scope='module')
+def dwell_case():
+    return concealed_case('dwell_time_breakaway', 1, duration=5000.0)
+
+
+def test_explain_names_a_concealed_dwell_effect_and_improves_the_held_out_fit(dwell_case):
+    d, truth = dwell_case
+    report, arrays = explain(d['t'], d['op'], d['mv'], [(0, len(d['t']))], 1.0, reps=1)
+    m, b = report['mismatch'], report['baseline']
+    assert m['effect'] == 'dwell_time_breakaway', report['candidates']
+    assert m['mse_holdout'] < b['mse_holdout']
+    assert m['mse_fit'] < b['mse_fit']
+    assert 'dwell' in m['explanation'] and 0.0 < m['confidence'] <= 1.0
+
+
+def test_explain_cli_report_keeps_the_contract(tmp_path, dwell_case):
+    d, _ = dwell_case
+    csv = tmp_path / 'loop.csv'
+    write_csv(csv, d)
+    out = tmp_path / 'r.json'
+    html = tmp_path / 'r.html'
+    proc = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.analyze', str(csv),
+                           '--model', 'kano', '--explain', '--bootstrap', '1', '--quiet',
+                           '--json', str(out), '--html', str(html)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert 'held-out MSE' in proc.stdout
+    r = json.loads(out.read_text())
+    assert set(r['baseline']) >= {'model', 'S', 'J', 'mse_fit', 'mse_holdout'}
+    m = r['mismatch']
+    assert m['effect'] in IDS and 0.0 <= m['confidence'] <= 1.0 and m['explanation']
+    for reg in m['regions']:
+        assert reg['t_start'] <= reg['t_end'] and 0.0 <= reg['residual_share'] <= 1.0
+        assert isinstance(reg['regime'], str)
+    assert set(m['model']) == {'name', 'params'}
+    assert {c['effect'] for c in r['candidates']} == {e.eid for e in EFFECTS}
+    for c in r['candidates']:
+        assert set(c) >= {'effect', 'params', 'mse_fit', 'mse_holdout', 'score'}
+    s = r['series']
+    assert len(s['t']) == len(s['op']) == len(s['mv']) == r['samples']
+    # Anyone can recompute both held-out MSEs from the series.
+    first = r['holdout']['first_sample']
+    mv = np.array(s['mv'][first:], dtype=float)
+    for key, mse in (('mv_baseline', r['baseline']['mse_holdout']),
+                     ('mv_explained', m['mse_holdout'])):
+        model = np.array(s[key][first:], dtype=float)
+        assert math.isclose(float(np.mean((mv - model) ** 2)), mse, rel_tol=1e-9)
+    assert html.stat().st_size > 0
+    assert (tmp_path / 'r_figures' / 'mismatch.png').stat().st_size > 20000
+
+
+def test_explain_without_mv_is_a_one_line_error(tmp_path):
+    csv = tmp_path / 'nomv.csv'
+    t = np.arange(200.0)
+    np.savetxt(csv, np.column_stack([t, 50 + np.sin(t / 9), np.cos(t / 9)]), delimiter=',',
+               header='t,op,pv', comments='')
+    proc = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.analyze', str(csv),
+                           '--explain', '--quiet'], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count('\n') == 0 and 'needs the valve position' in proc.stderr
