@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
-from stiction_ros.models.base import ModelError, ValveModel
+from stiction_ros.models.base import ValveModel
 
 EFFECTS = ('none', 'asymmetric_friction', 'dwell_time_breakaway', 'actuator_lag',
            'measurement_lag', 'position_dependent_friction', 'friction_drift',
@@ -65,12 +65,6 @@ class KanoEffects(ValveModel):
         elif e == 'presliding_creep':
             p[kk.CREEP] = q['creep']
         self._p = p
-
-    def _validate(self, values):
-        out = super()._validate(values)
-        if out['S'] < out['J']:
-            raise ModelError(f'kano_effects: J = {out["J"]} exceeds S = {out["S"]}')
-        return out
 
     def _initial_state(self, u0, y0):
         uc = min(max(u0, 0.0), 100.0)
