@@ -24,7 +24,7 @@ def op_walk(n=6000, seed=0):
 def test_every_effect_at_zero_is_kanos_model_sample_for_sample():
     u = op_walk()
     plain = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0)
-    ctx = Context(1.0, len(u), 50.0, 3.0)
+    ctx = Context(1.0, len(u), 50.0)
     out, rest = np.empty(len(u)), np.empty(len(u))
     for effect in EFFECTS:
         p = effect.vector(tuple(0.0 for _ in effect.names), ctx)

@@ -28,7 +28,8 @@ DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_
 
 
 def _slips(record):
-    return slip_events(record['op'], record['pv'], record['sp'], 1.0).stiction
+    ts = float(record['t'][1] - record['t'][0])
+    return slip_events(record['op'], record['pv'], record['sp'], ts).stiction
 
 
 def loop_group(name):

@@ -22,7 +22,6 @@ class Context:
     sample_time: float
     n_fit: int
     position_ref: float
-    S: float
 
 
 @dataclass(frozen=True)

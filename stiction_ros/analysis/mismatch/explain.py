@@ -59,14 +59,14 @@ def _acf1(x):
 
 
 def fit_all(op, mv, fit_segments, sample_time, progress=None, label=''):
-    """Return (plain Fit, problem, context, [CandidateFit]) on the fitted segments."""
+    """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
     base = identify(op, mv, 'kano', segments=fit_segments, sample_time=sample_time,
                     interval=False)
     starts = [a for a, _ in fit_segments]
     stops = [b for _, b in fit_segments]
     problem = Problem(op, mv, starts, stops)
     used = np.concatenate([np.arange(a, b) for a, b in fit_segments])
-    ctx = Context(sample_time, int(max(stops)), float(np.mean(mv[used])), base.S)
+    ctx = Context(sample_time, int(max(stops)), float(np.mean(mv[used])))
     plain_sse = problem.sse(base.S, base.J, kk.plain_params())
     fits = []
     for i, effect in enumerate(EFFECTS):

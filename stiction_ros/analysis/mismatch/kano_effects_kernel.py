@@ -91,6 +91,13 @@ def _step(uraw, k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest):
 
 
 @njit(cache=True)
+def _at_rest(u0, k, y0):
+    # The state of a valve resting at y0 with no friction force stored, before sample k.
+    u1 = _clip(u0)
+    return u0, u1, u1, u1, True, 0.0, y0, y0, k, y0
+
+
+@njit(cache=True)
 def kano_effects_sse(u, y, starts, stops, y0s, S, J, p, limit):
     """
     Return the SSE against ``y`` over the segments, or a number > ``limit`` once past it.
@@ -100,10 +107,7 @@ def kano_effects_sse(u, y, starts, stops, y0s, S, J, p, limit):
     sse = 0.0
     for s in range(starts.shape[0]):
         i0 = starts[s]
-        uf = u[i0]
-        u1 = _clip(uf)
-        y0 = y0s[s]
-        u2, us, resting, d, yk, ym, since, yrest = u1, u1, True, 0.0, y0, y0, i0, y0
+        uf, u1, u2, us, resting, d, yk, ym, since, yrest = _at_rest(u[i0], i0, y0s[s])
         for k in range(i0, stops[s]):
             uf, u1, u2, us, resting, d, yk, ym, since, yrest = _step(
                 u[k], k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest)
@@ -130,10 +134,7 @@ def kano_effects_output(u, starts, stops, y0s, S, J, p, out, resting_out):
     """Write the model's position into ``out`` (and 1.0 where at rest into ``resting_out``)."""
     for s in range(starts.shape[0]):
         i0 = starts[s]
-        uf = u[i0]
-        u1 = _clip(uf)
-        y0 = y0s[s]
-        u2, us, resting, d, yk, ym, since, yrest = u1, u1, True, 0.0, y0, y0, i0, y0
+        uf, u1, u2, us, resting, d, yk, ym, since, yrest = _at_rest(u[i0], i0, y0s[s])
         for k in range(i0, stops[s]):
             uf, u1, u2, us, resting, d, yk, ym, since, yrest = _step(
                 u[k], k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest)

@@ -112,10 +112,10 @@ def slip_events(op, pv, sp, sample_time, integrating=False):
     if len(pv) < 2 * L:
         return Signature('slip_events', None, THRESHOLD, None,
                          f'too short: needs at least {2 * L} samples', REFERENCE)
-    jumps = candidate_jumps(pv)
     if _robust_std(np.diff(pv)) <= 0.0:
         return Signature('slip_events', None, THRESHOLD, None,
                          'PV does not vary: nothing to see a slip in', REFERENCE)
+    jumps = candidate_jumps(pv)
     op_noise = _robust_std(np.diff(op)) / np.sqrt(2.0)
     events, rejected = [], 0
     for k, z, step in jumps:
