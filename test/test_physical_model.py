@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 from stiction_ros.models.base import ModelError
 from stiction_ros.models.physical import Physical, quasi_static_sj
@@ -344,6 +345,7 @@ def test_quasi_static_mapping_of_default_valve():
     {'tau_ip': 0.0, 'sample_time': 0.05},
     {'integrator': 'substep', 'substep': 1e-3},
     {'stribeck': True, 'substep': 1e-3},
+    {'dFs': 300.0, 'gamma': 5.0, 'asym': 0.2, 'hold': 'foh', 'substep': 1e-3},
 ])
 def test_step_equals_simulate(params):
     """Running sample by sample gives bit-identical positions to a whole-array run."""
@@ -367,6 +369,60 @@ def test_stribeck_falls_back_to_substep():
     b = Physical(integrator='substep', **kw).simulate(u)
     np.testing.assert_array_equal(a, b)
     assert np.ptp(a) > 5.0
+
+
+# -- (h) the frictions of EFFECTS.md written as physics ------------------------------
+# A valve with gain 1 and no offset (spring and preload matched to the actuator),
+# a fast I/P and light damping: the stem is on the quasi-static picture within a sample.
+SPAN = force_span()
+UNIT = {'k': SPAN / DEFAULTS['x_max'], 'F0': DEFAULTS['A'] * DEFAULTS['p_min'], 'Fv': 2500.0,
+        'tau_ip': 0.0, 'Fs': 0.03 * SPAN, 'Fc': 0.02 * SPAN, 'substep': 1e-4}
+
+
+def breakaway_input(u_path, **params):
+    """Return the input at which the stem first moves along ``u_path`` (from rest at u[0])."""
+    m = Physical(**{**UNIT, **params})
+    y = m.simulate(u_path, y0=50.0)
+    moved = np.flatnonzero(np.abs(y - 50.0) > 1e-6)
+    return u_path[moved[0]] if moved.size else None
+
+
+def test_dwell_static_friction_needs_more_force_after_a_longer_rest():
+    """Fs + dFs t/(t + gamma): the input travel to break away grows with the time at rest."""
+    rate, gamma = 0.1, 20.0
+    travel = []
+    for rest in (2, 20, 200):
+        u = np.concatenate([np.full(rest, 50.0), 50.0 + rate * np.arange(1, 200)])
+        travel.append(breakaway_input(u, dFs=0.02 * SPAN, gamma=gamma) - 50.0)
+        # The stem still rests during the ramp: it breaks away at the travel x where
+        # x = 3 + 2 t/(t + gamma) % with t = rest + x/rate seconds at rest.
+        expected = brentq(lambda x: x - 3.0 - 2.0 * (rest + x / rate) / (rest + x / rate + gamma),
+                          0.0, 10.0)
+        assert travel[-1] == pytest.approx(expected, abs=rate + 0.01)
+    assert travel[0] < travel[1] < travel[2]
+    plain = np.concatenate([np.full(200, 50.0), 50 + rate * np.arange(1, 200)])
+    assert breakaway_input(plain) - 50.0 == pytest.approx(3.0, abs=rate + 0.01)
+
+
+@pytest.mark.parametrize('asym', [0.2, -0.2])
+def test_asymmetric_friction_breaks_away_later_in_the_stiffer_direction(asym):
+    """Friction forces times 1 + asym opening and 1 - asym closing."""
+    up = breakaway_input(50.0 + 0.01 * np.arange(0, 800), asym=asym) - 50.0
+    down = 50.0 - breakaway_input(50.0 - 0.01 * np.arange(0, 800), asym=asym)
+    assert up == pytest.approx(3.0 * (1 + asym), abs=0.02)
+    assert down == pytest.approx(3.0 * (1 - asym), abs=0.02)
+
+
+def test_first_order_hold_ends_each_sample_on_the_kinetic_line():
+    """Ramping the command through the sample keeps a driven stem sliding, as Kano's model does."""
+    u = np.concatenate([np.full(5, 50.0), 50.0 + 0.5 * np.arange(1, 40)])
+    foh = Physical(**UNIT, hold='foh').simulate(u, y0=50.0)
+    zoh = Physical(**UNIT).simulate(u, y0=50.0)
+    moving = slice(20, None)
+    # Sliding at constant speed the stem lags its input by the Coulomb band Fc (2 % here).
+    np.testing.assert_allclose(foh[moving], u[moving] - 2.0, atol=0.05)
+    # Held input: the stem comes to rest within each sample and must break away again.
+    assert np.max(np.abs(zoh[moving] - (u[moving] - 2.0))) > 0.5
 
 
 def test_set_params_keeps_state_and_applies_next_sample():

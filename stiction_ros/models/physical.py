@@ -38,9 +38,12 @@ scale and of ``tau_ip``) and refines their time by bisection with finer exact
 propagators, down to 1e-10 s; the breakaway instant of a stuck stem is solved
 in closed form, since the pressure is monotone within a sample.
 ``'substep'`` takes semi-implicit steps of length ``substep`` (viscous friction
-implicit); it is the reference for ``'exact'`` and the only integrator for the
-Stribeck term: with ``stribeck=True`` the ``'exact'`` setting falls back to
-``'substep'`` internally (the sliding dynamics are then non-linear).
+implicit, ``physical_substep.py``); it is the reference for ``'exact'`` and the
+only integrator for the frictions of docs EFFECTS.md that the exact
+propagators cannot carry: the Stribeck term (non-linear sliding dynamics), a
+static friction that grows with rest time (``dFs``, ``gamma``) and friction
+that differs by direction (``asym``).  With any of them on, the ``'exact'``
+setting falls back to ``'substep'`` internally.
 """
 
 import math
@@ -50,13 +53,11 @@ from scipy.linalg import expm
 
 from stiction_ros.models.base import ModelError, ValveModel
 
-# Indices into the constants array handed to the kernels.
-_M, _K, _A, _F0, _XMAX, _PMIN, _DP, _TAU, _FC, _FS, _FV, _VS, _TS, _VSTICK = range(14)
-_DT, _EP, _NSUB, _STRIB, _NCONST = 14, 15, 16, 17, 18
-
-# Indices into the state array; state[0] is the output, as base.py requires.
-S_Y, S_X, S_V, S_P, S_STUCK, S_DIR, S_SIGNWAIT = range(7)
-STATE_SIZE = 7
+from stiction_ros.models.physical_layout import (
+    _A, _ASYM, _DFS, _DP, _DT, _EP, _F0, _FC, _FOH, _FS, _FV, _GAMMA, _K, _M, _NCONST, _NSUB,
+    _PMIN, _STRIB, _TAU, _TS, _VS, _VSTICK, _XMAX, S_DIR, S_P, S_SIGNWAIT, S_STUCK, S_UPREV,
+    S_V, S_X, S_Y, STATE_SIZE)
+from stiction_ros.models.physical_substep import run_substep
 
 # Finest bisection step when refining an event time, in seconds.
 _T_RESOLUTION = 1e-10
@@ -229,89 +230,6 @@ def _run_exact(u, y, state, c, phis, hs, q, jmax):
     state[S_SIGNWAIT] = 1.0 if signwait else 0.0
 
 
-def _run_substep(u, y, state, c):
-    """Advance ``state`` over inputs ``u`` with fixed semi-implicit substeps; fill ``y``."""
-    M = c[_M]
-    A = c[_A]
-    k = c[_K]
-    F0 = c[_F0]
-    xmax = c[_XMAX]
-    tau = c[_TAU]
-    Fc = c[_FC]
-    Fs = c[_FS]
-    Fv = c[_FV]
-    vs = c[_VS]
-    vstick = c[_VSTICK]
-    dt = c[_DT]
-    ep = c[_EP]
-    nsub = int(c[_NSUB])
-    stribeck = c[_STRIB] > 0.5
-    dtm = dt / M
-    damp = 1.0 + dt * Fv / M
-    x = state[S_X]
-    v = state[S_V]
-    p = state[S_P]
-    stuck = state[S_STUCK] > 0.5
-    d = state[S_DIR]
-    signwait = state[S_SIGNWAIT] > 0.5
-    if x > xmax or x < 0.0:
-        x = min(max(x, 0.0), xmax)
-        v = 0.0
-        stuck = True
-    for i in range(u.shape[0]):
-        ui = u[i]
-        ui = 0.0 if ui < 0.0 else 100.0 if ui > 100.0 else ui
-        pc = c[_PMIN] + ui * 0.01 * c[_DP]
-        if tau <= 0.0:
-            p = pc
-        for _ in range(nsub):
-            if tau > 0.0:
-                p = pc + (p - pc) * ep
-            n = A * p - k * x - F0
-            if stuck:
-                if n > Fs and x < xmax:
-                    d = 1.0
-                elif n < -Fs and x > 0.0:
-                    d = -1.0
-                else:
-                    continue
-                stuck = False
-                signwait = False
-                v = 0.0
-            ff = Fc
-            if stribeck:
-                r = v / vs
-                ff = Fc + (Fs - Fc) * math.exp(-r * r)
-            vn = (v + dtm * (n - d * ff)) / damp
-            xn = x + dt * vn
-            if xn > xmax or xn < 0.0:
-                x = xmax if xn > xmax else 0.0
-                v = 0.0
-                stuck = True
-                continue
-            dv = d * vn
-            event = dv < 0.0 or (not signwait and dv < vstick and dv < d * v)
-            x = xn
-            v = vn
-            if event:
-                if abs(A * p - k * x - F0) <= Fs:
-                    v = 0.0
-                    stuck = True
-                elif dv < 0.0:
-                    d = -d
-                    signwait = False
-                else:
-                    signwait = True
-        y[i] = x / xmax * 100.0
-    state[S_Y] = x / xmax * 100.0
-    state[S_X] = x
-    state[S_V] = v
-    state[S_P] = p
-    state[S_STUCK] = 1.0 if stuck else 0.0
-    state[S_DIR] = d
-    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
-
-
 class Physical(ValveModel):
     """
     Pneumatic valve from Newton's law with Coulomb, viscous and static friction.
@@ -323,10 +241,11 @@ class Physical(ValveModel):
     constant ``tau_ip`` (0: instantly).  The output is ``x/x_max*100``.
 
     State layout (all memory, so ``step`` and ``simulate`` agree):
-    ``[y %, x m, v m/s, p Pa, stuck 0/1, direction +-1, waiting-for-sign-change 0/1]``.
+    ``[y %, x m, v m/s, p Pa, stuck 0/1, direction +-1, waiting-for-sign-change 0/1,
+    time at rest s]``.
 
-    With ``stribeck=True`` the ``'exact'`` integrator falls back to
-    ``'substep'`` internally, because the sliding dynamics are no longer linear.
+    With ``stribeck=True``, ``dFs > 0`` or ``asym != 0`` the ``'exact'``
+    integrator falls back to ``'substep'`` internally.
 
     ``v_stick`` is an addition to eq. 2.2 (Karnopp's zero-velocity band, see
     the module docstring): without it the over-damped default valve never
@@ -336,7 +255,8 @@ class Physical(ValveModel):
     must be able to move, which here means both (1) at full pressure the
     actuator lifts the closed stem off its seat, ``A*p_max - F0 > Fs``, and
     (2) after an opening stroke the pressure range can reverse the friction,
-    ``A*(p_max - p_min) > Fs + Fc`` (quasi-static S below 100 %); and, where
+    ``A*(p_max - p_min) > Fs + Fc`` (quasi-static S below 100 %), both with
+    ``Fs`` and ``Fc`` at their largest (``Fs + dFs``, times ``1 + |asym|``); and, where
     substeps are used, ``dt*sqrt(k/M) < 1`` for a stable spring update.
     """
 
@@ -356,6 +276,12 @@ class Physical(ValveModel):
         'vs': (5e-4, 1e-9, 100.0, 'Stribeck velocity (m/s)'),
         'stribeck': (False, 'choice', (False, True),
                      'use Fc + (Fs-Fc)*exp(-(v/vs)^2) as sliding friction'),
+        'dFs': (0.0, 0.0, 1e8, 'static friction gained by a long rest (N): '
+                'Fs + dFs*t/(t + gamma) after t s at rest'),
+        'gamma': (60.0, 1e-3, 1e7, 'rest time at which half of dFs is reached (s)'),
+        'asym': (0.0, -0.9, 0.9, 'friction forces times (1 + asym) opening, (1 - asym) closing'),
+        'hold': ('zoh', 'choice', ('zoh', 'foh'),
+                 'input between samples: zoh holds it, foh ramps it from the previous one'),
         'v_stick': (1e-7, 0.0, 1e-2,
                     'stem sticks when decelerating below this speed with |N| <= Fs (m/s); '
                     '0: only at a velocity sign change'),
@@ -375,19 +301,22 @@ class Physical(ValveModel):
             raise ModelError(
                 f'{n}: static friction Fs = {out["Fs"]} N is below Coulomb friction '
                 f'Fc = {out["Fc"]} N; Fs >= Fc is required')
+        # The most static friction the stem can meet: after a long rest, in its worse direction.
+        fs_max = (out['Fs'] + out['dFs']) * (1.0 + abs(out['asym']))
         lift = out['A'] * out['p_max'] - out['F0']
-        if lift <= out['Fs']:
+        if lift <= fs_max:
             raise ModelError(
                 f'{n}: the stem cannot move: at p_max the actuator net force A*p_max - F0 = '
-                f'{lift:.6g} N does not exceed static friction Fs = {out["Fs"]} N, so the '
-                'stem never leaves its seat')
+                f'{lift:.6g} N does not exceed the static friction (Fs + dFs)*(1 + |asym|) = '
+                f'{fs_max:.6g} N, so the stem never leaves its seat')
         span = out['A'] * (out['p_max'] - out['p_min'])
-        if span <= out['Fs'] + out['Fc']:
+        fc_max = out['Fc'] * (1.0 + abs(out['asym']))
+        if span <= fs_max + fc_max:
             raise ModelError(
                 f'{n}: the stem cannot move both ways: the actuator force range '
-                f'A*(p_max - p_min) = {span:.6g} N does not exceed Fs + Fc = '
-                f'{out["Fs"] + out["Fc"]} N, so a stroke can never be reversed')
-        if out['integrator'] == 'substep' or out['stribeck']:
+                f'A*(p_max - p_min) = {span:.6g} N does not exceed the static plus Coulomb '
+                f'friction {fs_max + fc_max:.6g} N, so a stroke can never be reversed')
+        if out['integrator'] == 'substep' or _needs_substeps(out):
             dt, nsub = _substep_length(out['sample_time'], out['substep'])
             if nsub > _MAX_SUBSTEPS:
                 raise ModelError(
@@ -422,8 +351,12 @@ class Physical(ValveModel):
         c[_EP] = math.exp(-dt / pr['tau_ip']) if pr['tau_ip'] > 0.0 else 0.0
         c[_NSUB] = nsub
         c[_STRIB] = 1.0 if pr['stribeck'] else 0.0
+        c[_DFS] = pr['dFs']
+        c[_GAMMA] = pr['gamma']
+        c[_ASYM] = pr['asym']
+        c[_FOH] = 1.0 if pr['hold'] == 'foh' else 0.0
         self._c = c
-        self._use_exact = pr['integrator'] == 'exact' and not pr['stribeck']
+        self._use_exact = pr['integrator'] == 'exact' and not _needs_substeps(pr)
         if self._use_exact:
             self._build_propagators()
 
@@ -489,13 +422,20 @@ class Physical(ValveModel):
         state[S_P] = pc
         state[S_STUCK] = 1.0
         state[S_DIR] = 1.0
+        state[S_UPREV] = min(max(float(u0), 0.0), 100.0)
         return state
 
     def _run(self, u, y, state):
         if self._use_exact:
             _run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
         else:
-            _run_substep(u, y, state, self._c)
+            run_substep(u, y, state, self._c)
+
+
+def _needs_substeps(pr):
+    # The exact propagators assume constant friction forces in each direction.
+    return (bool(pr['stribeck']) or pr['dFs'] > 0.0 or pr['asym'] != 0.0
+            or pr['hold'] == 'foh')
 
 
 def _substep_length(ts, substep):
