@@ -138,12 +138,14 @@ def _keep_best(scores, s_values, j_values, keep):
     return out
 
 
-def search(problem, s_max, j_max, resolution=0.01, coarse_points=48, keep=12, progress=None):
+def search(problem, s_max, j_max, resolution=0.01, coarse_points=96, keep=12, progress=None):
     """
     Return (sse, S, J) of the best pair on multiples of ``resolution``.
 
     ``coarse_points`` sets the coarse step (the larger box side over that
     many points); each level refines five-fold around the ``keep`` best.
+    With 48 points a loop whose OP spans 70 % (step 1.5 %) lost the true
+    basin of S = 3.42 to a wrong one ten times worse; 96 found it.
     """
     res = float(resolution)
     step = max(res, max(s_max, j_max) / coarse_points)
