@@ -27,7 +27,7 @@ class KanoEffects(ValveModel):
         'S': (0.0, 0.0, 100.0, 'deadband plus stickband, % of input span'),
         'J': (0.0, 0.0, 100.0, 'slip jump, % of output span'),
         'effect': ('none', 'choice', EFFECTS, 'which physics to add'),
-        'asymmetry': (0.0, -0.9, 0.9, 'S, J scale 1 +/- this opening/closing'),
+        'asymmetry': (0.0, -0.9, 0.9, 'friction forces times 1 +/- this opening/closing'),
         'dwell_gain': (0.0, 0.0, 5.0, 'static band growth after long rests, fraction of S'),
         'dwell_time': (30.0, 1e-6, 1e6, 'rest time for half the growth, s'),
         'lag_time': (0.0, 0.0, 1e6, 'actuator or measurement lag, s'),

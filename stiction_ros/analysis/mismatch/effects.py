@@ -69,10 +69,11 @@ def _samples_of(v, ctx):
 
 def _asym_sentence(q, S, J):
     a = q['asymmetry']
-    return (f'Breaking away needs {S * (1 + a):.2f} % of OP when opening but '
-            f'{S * (1 - a):.2f} % when closing: friction differs by direction '
-            f'({abs(a) * 200 / (1 - abs(a)):.0f} % more {"opening" if a > 0 else "closing"}; '
-            'plug unbalance, gravity or packing).')
+    return (f'Friction is {abs(a) * 200 / (1 - abs(a)):.0f} % higher '
+            f'{"opening" if a > 0 else "closing"} than {"closing" if a > 0 else "opening"} '
+            f'(plug unbalance, gravity or packing): after a reversal the valve needs '
+            f'{S + a * J:.2f} % of OP to start opening but {S - a * J:.2f} % to start closing, '
+            f'and jumps {J * (1 + a):.2f} % against {J * (1 - a):.2f} %.')
 
 
 def _dwell_sentence(q, S, J):
@@ -121,7 +122,7 @@ EFFECTS = (
            _vec(a=(kk.ASYM, _same)), _asym_sentence),
     Effect('dwell_time_breakaway', ('gain', 'time_constant_s'),
            lambda ctx: [(float(g), float(t * ctx.sample_time))
-                        for t in (5.0, 20.0, 60.0, 200.0)
+                        for t in (5.0, 15.0, 40.0, 100.0, 250.0)
                         for g in (0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8)],
            _vec(g=(kk.DWELL, _same), t=(kk.DWELL_TAU, _samples_of)), _dwell_sentence),
     Effect('actuator_lag', ('time_constant_s',), _lags, _vec(t=(kk.A_IN, _pole_of)),

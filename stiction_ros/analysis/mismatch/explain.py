@@ -25,7 +25,7 @@ from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
-from stiction_ros.analysis.mismatch.fit import fit_effect, Problem, start_positions
+from stiction_ros.analysis.mismatch.fit import fit_effect, Problem, RESOLUTION, start_positions
 
 HOLDOUT = 0.3
 BOOTSTRAP = 3
@@ -61,7 +61,7 @@ def _acf1(x):
 def fit_all(op, mv, fit_segments, sample_time, progress=None, label=''):
     """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
     base = identify(op, mv, 'kano', segments=fit_segments, sample_time=sample_time,
-                    interval=False)
+                    resolution=RESOLUTION, interval=False)
     starts = [a for a, _ in fit_segments]
     stops = [b for _, b in fit_segments]
     problem = Problem(op, mv, starts, stops)
@@ -89,10 +89,10 @@ def bootstrap(op, mv, fit_segments, sample_time, base, plain_sse, n, reps, seed,
     worst = {e.eid: 0.0 for e in EFFECTS}
     acfs = []
     for r in range(reps):
-        # A real valve's S and J are not on the 0.01 grid, and the breakaway flips
+        # A real valve's S and J are not on the fit's grid, and the breakaway flips
         # that costs are part of what noise alone produces: replicates get the same.
-        S = max(base.S + rng.uniform(-0.005, 0.005), 0.0)
-        J = min(max(base.J + rng.uniform(-0.005, 0.005), 0.0), S)
+        S = max(base.S + rng.uniform(-0.5, 0.5) * RESOLUTION, 0.0)
+        J = min(max(base.J + rng.uniform(-0.5, 0.5) * RESOLUTION, 0.0), S)
         # Each replicate starts where the plain model starts: at the measured position.
         clean, _ = model_output(op, mv, fit_segments, S, J, kk.plain_params())
         y = clean + sigma * rng.standard_normal(len(op))

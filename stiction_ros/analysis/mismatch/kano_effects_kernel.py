@@ -9,7 +9,9 @@ nested.  The parameter vector ``p`` is indexed by the constants below:
 
 - ``A_IN``: pole of a first-order lag on OP before the friction (actuator_lag);
 - ``B_OUT``: pole of a first-order lag on the position after it (measurement_lag);
-- ``ASYM``: S and J scale by (1 + ASYM) opening and (1 - ASYM) closing;
+- ``ASYM``: friction forces scale by (1 + ASYM) opening and (1 - ASYM) closing, so
+  the kinetic band (S - J)/2 and static band (S + J)/2 of each direction do, and a
+  reversal from direction d needs (S - J)/2 (1 + ASYM d) + (S + J)/2 (1 - ASYM d);
 - ``DWELL``, ``DWELL_TAU``: the static band grows by DWELL * S * r / (r + DWELL_TAU)
   after r samples at rest (Armstrong-Helouvry's dwell law; kinetic band unchanged);
 - ``POS``, ``POS_REF``: S and J scale by 1 + POS * (y - POS_REF) / 50;
@@ -58,11 +60,14 @@ def _breakaway_fx(d, rel, S, J, p, y, k, rest):
         if abs(rel) > 0.5 * (S + J) * m + grow:
             return nd
         return 0.0
-    m = _scale(p, -d, y, k)
-    if -d * rel > S * m + grow:
+    m_old = _scale(p, d, y, k)
+    m_new = _scale(p, -d, y, k)
+    # Reversing, the input first undoes the kinetic friction of the old direction,
+    # then overcomes the static friction of the new one: (S-J)/2 + (S+J)/2 = S when
+    # both directions are alike.
+    if -d * rel > 0.5 * (S - J) * m_old + 0.5 * (S + J) * m_new + grow:
         return -d
-    m = _scale(p, d, y, k)
-    if d * rel > J * m + grow:
+    if d * rel > J * m_old + grow:
         return d
     return 0.0
 
