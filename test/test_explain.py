@@ -109,8 +109,25 @@ def test_explain_cli_report_keeps_the_contract(tmp_path, dwell_case):
                      ('mv_explained', m['mse_holdout'])):
         model = np.array(s[key][first:], dtype=float)
         assert math.isclose(float(np.mean((mv - model) ** 2)), mse, rel_tol=1e-9)
-    assert html.stat().st_size > 0
+    page = html.read_text()
+    # The candidates side by side, and where the plain model misses.
+    assert 'Candidates side by side' in page and 'Residual by regime' in page
+    assert all(e.eid in page for e in EFFECTS)
+    assert 'located:' in proc.stdout and 'plain model: kano' in proc.stdout
     assert (tmp_path / 'r_figures' / 'mismatch.png').stat().st_size > 20000
+
+
+@pytest.mark.parametrize('effect, seed', [('asymmetric_friction', 3),
+                                          ('dwell_time_breakaway', 2)])
+def test_explain_names_an_effect_written_as_physics_in_the_force_balance_valve(effect, seed):
+    # The physical valve carries the effect as a force law (direction-dependent friction,
+    # static friction growing with rest time), not as the kano_effects parameter fitted.
+    d, truth = concealed_case(effect, seed, duration=5000.0, family='physical')
+    assert truth['valve']['model'] == 'physical'
+    report, _ = explain(d['t'], d['op'], d['mv'], [(0, len(d['t']))], 1.0, reps=1)
+    m, b = report['mismatch'], report['baseline']
+    assert m['effect'] == effect, report['candidates']
+    assert m['mse_fit'] < b['mse_fit'] and m['mse_holdout'] < b['mse_holdout']
 
 
 def test_explain_without_mv_is_a_one_line_error(tmp_path):

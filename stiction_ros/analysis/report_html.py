@@ -53,6 +53,43 @@ def _img(path):
     return f'<p><img alt="{_e(Path(path).name)}" src="data:image/png;base64,{data}"></p>'
 
 
+def _mismatch_parts(report):
+    # The --explain sections: the answer first, then what it rests on.
+    m, b, h = report['mismatch'], report['baseline'], report.get('holdout', {})
+    out = ['<h2>Why the model misses (--explain)</h2>',
+           f'<p class="verdict">{_e(m["effect"])} &mdash; confidence '
+           f'{_num(m["confidence"], 3)}</p>', f'<p>{_e(m["explanation"])}</p>',
+           _table(['model', 'parameters', 'MSE fitted part', 'MSE held-out part'], [
+               [f'{_e(b["model"])} (plain)', f'S {_num(b["S"])}, J {_num(b["J"])}',
+                _num(b['mse_fit']), _num(b['mse_holdout'])],
+               [_e(m['model']['name']), _e(', '.join(f'{k} {_num(v)}' for k, v in
+                                                     m['model']['params'].items())),
+                _num(m['mse_fit']), _num(m['mse_holdout'])]]),
+           f'<p>Held out: samples from {_e(h.get("first_sample"))} on (t &ge; '
+           f'{_num(h.get("t_start"))} s, {_e(h.get("holdout_samples"))} samples), used for '
+           'nothing but the held-out MSE.</p>']
+    rows = [[_e(c['effect']), _e(', '.join(f'{k} {_num(v)}' for k, v in c['params'].items())),
+             _num(c['S']), _num(c['J']), _num(c['mse_fit']), _num(c['mse_holdout']),
+             _num(c.get('lr')), _num(c.get('threshold')), _num(c['score'], 3)]
+            for c in report.get('candidates', [])]
+    out += ['<h3>Candidates side by side (each nests the plain model)</h3>',
+            _table(['effect', 'parameters', 'S (%)', 'J (%)', 'MSE fit', 'MSE held-out',
+                    'LR', 'threshold', 'score (LR / threshold)'], rows)]
+    if m.get('regions'):
+        rows = [[_num(r['t_start']), _num(r['t_end']), _e(r['regime']),
+                 _num(r['residual_share'], 3)] for r in m['regions']]
+        out += ['<h3>Where the plain model misses most (fitted part)</h3>',
+                _table(['from (s)', 'to (s)', 'dominant regime', 'share of the residual'],
+                       rows)]
+    if m.get('regimes'):
+        rows = [[_e(r['regime']), _num(r['residual_share'], 3), _num(r['sample_share'], 3),
+                 _num(r['lift'], 3)] for r in m['regimes']]
+        out += ['<h3>Residual by regime</h3>',
+                _table(['regime', 'share of the residual', 'share of the samples',
+                        'lift (residual / samples)'], rows)]
+    return out
+
+
 def render(report, figures):
     """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
     st = report.get('stiction', {})
@@ -86,6 +123,8 @@ def render(report, figures):
                 for name, s in sigs.items()]
         parts += ['<h2>Signatures (OP and PV only)</h2>',
                   _table(['signature', 'value', 'threshold', 'decision', 'why'], rows)]
+    if report.get('mismatch'):
+        parts += _mismatch_parts(report)
     ham = st.get('hammerstein')
     if ham:
         parts.append(f'<h2>Hammerstein quantification</h2><p>{_e(json.dumps(ham))}</p>')

@@ -174,6 +174,15 @@ def summary_line(report):
            f'{st["score"]:.2f})' + (f'; {fits}' if fits else '')
     if 'mismatch' in report:
         m, b = report['mismatch'], report['baseline']
+        line += f'\nplain model: kano S={b["S"]:.3f} J={b["J"]:.3f} MSE fit {b["mse_fit"]:.4g}'
+        if m.get('regimes'):
+            r = m['regimes'][0]
+            line += (f'\nlocated: {r["regime"]} holds {100 * r["residual_share"]:.0f} % of the '
+                     f'residual in {100 * r["sample_share"]:.0f} % of the samples')
+        if m.get('regions'):
+            g = m['regions'][0]
+            line += (f'; worst stretch t={g["t_start"]:.0f}-{g["t_end"]:.0f} s ({g["regime"]}, '
+                     f'{100 * g["residual_share"]:.0f} % of the residual)')
         line += (f'\nmismatch: {m["effect"]} (confidence {m["confidence"]:.2f}): '
                  f'{m["explanation"]}\nheld-out MSE: plain {b["mse_holdout"]:.4g} -> '
                  f'explained {m["mse_holdout"]:.4g}')
