@@ -49,7 +49,7 @@ lint: venv
 bench: venv
 	$(PY) -m bench.run_all
 
-# --explain run blind on concealed closed-loop cases (about 8 min on 2 cores):
+# --explain run blind on concealed closed-loop cases (about 10 min on 2 cores):
 # writes docs/EXPLAIN_BENCHMARK.md and docs/explain_bench.json.
 bench-explain: venv
 	$(PY) -m bench.explain_bench
