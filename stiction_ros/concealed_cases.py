@@ -17,6 +17,7 @@ import numpy as np
 
 from stiction_ros.closed_loop import simulate_loop
 from stiction_ros.loop_config import load_loop
+from stiction_ros.models.physical import Physical
 from stiction_ros.paths import config_file
 
 # Effect sizes: (parameter, low, high) drawn uniformly.
@@ -109,7 +110,6 @@ def kano_valve(effect, S, J, rng, duration):
 # follows the input one to one once sliding (gain 1, offset 0, as Kano's model
 # assumes), a light viscous term and a fast I/P, so that the plain valve is Kano's
 # model up to far less than the MV noise.
-_A, _P_MIN, _P_MAX, _X_MAX = 0.0445, 41368.0, 180000.0, 0.029
 PHYSICAL_SIZES = {
     'none': {},
     'stribeck_stick_slip': {'vs': (4e-6, 1.2e-5)},
@@ -126,12 +126,13 @@ def physical_valve(effect, S, J, rng):
     friction that grows with rest time (``dFs``, ``gamma``), or friction forces
     that differ by direction (``asym``).
     """
-    span = _A * (_P_MAX - _P_MIN)
+    A, p_min, p_max, x_max = (Physical.PARAMS[k][0] for k in ('A', 'p_min', 'p_max', 'x_max'))
+    span = A * (p_max - p_min)
     Fs = 0.5 * (S + J) / 100.0 * span
     Fc = 0.5 * (S - J) / 100.0 * span
-    valve = {'model': 'physical', 'A': _A, 'p_min': _P_MIN, 'p_max': _P_MAX, 'x_max': _X_MAX,
-             'k': span / _X_MAX, 'F0': _A * _P_MIN, 'Fs': Fs, 'Fc': Fc, 'Fv': 2500.0,
-             'tau_ip': 0.01, 'hold': 'foh', 'integrator': 'substep', 'substep': 1e-4}
+    valve = {'model': 'physical', 'k': span / x_max, 'F0': A * p_min, 'Fs': Fs, 'Fc': Fc,
+             'Fv': 2500.0, 'tau_ip': 0.01, 'hold': 'foh', 'integrator': 'substep',
+             'substep': 1e-4}
     sizes = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in PHYSICAL_SIZES[effect].items()}
     if effect == 'stribeck_stick_slip':
         valve.update(stribeck=True, vs=sizes['vs'])

@@ -53,6 +53,10 @@ def _img(path):
     return f'<p><img alt="{_e(Path(path).name)}" src="data:image/png;base64,{data}"></p>'
 
 
+def _params(values):
+    return _e(', '.join(f'{k} {_num(v)}' for k, v in values.items()))
+
+
 def _mismatch_parts(report):
     # The --explain sections: the answer first, then what it rests on.
     m, b, h = report['mismatch'], report['baseline'], report.get('holdout', {})
@@ -62,13 +66,12 @@ def _mismatch_parts(report):
            _table(['model', 'parameters', 'MSE fitted part', 'MSE held-out part'], [
                [f'{_e(b["model"])} (plain)', f'S {_num(b["S"])}, J {_num(b["J"])}',
                 _num(b['mse_fit']), _num(b['mse_holdout'])],
-               [_e(m['model']['name']), _e(', '.join(f'{k} {_num(v)}' for k, v in
-                                                     m['model']['params'].items())),
+               [_e(m['model']['name']), _params(m['model']['params']),
                 _num(m['mse_fit']), _num(m['mse_holdout'])]]),
            f'<p>Held out: samples from {_e(h.get("first_sample"))} on (t &ge; '
            f'{_num(h.get("t_start"))} s, {_e(h.get("holdout_samples"))} samples), used for '
            'nothing but the held-out MSE.</p>']
-    rows = [[_e(c['effect']), _e(', '.join(f'{k} {_num(v)}' for k, v in c['params'].items())),
+    rows = [[_e(c['effect']), _params(c['params']),
              _num(c['S']), _num(c['J']), _num(c['mse_fit']), _num(c['mse_holdout']),
              _num(c.get('lr')), _num(c.get('threshold')), _num(c['score'], 3)]
             for c in report.get('candidates', [])]

@@ -55,9 +55,9 @@ from stiction_ros.models.base import ModelError, ValveModel
 
 from stiction_ros.models.physical_layout import (
     _A, _ASYM, _DFS, _DP, _DT, _EP, _F0, _FC, _FOH, _FS, _FV, _GAMMA, _K, _M, _NCONST, _NSUB,
-    _PMIN, _STRIB, _TAU, _TS, _VS, _VSTICK, _XMAX, S_DIR, S_P, S_SIGNWAIT, S_STUCK, S_UPREV,
-    S_V, S_X, S_Y, STATE_SIZE)
-from stiction_ros.models.physical_substep import run_substep
+    _PMIN, _STRIB, _TAU, _TS, _VS, _VSTICK, _XMAX, S_DIR, S_P, S_STUCK, S_UPREV, S_X, S_Y,
+    STATE_SIZE)
+from stiction_ros.models.physical_substep import load_state, run_substep, store_state
 
 # Finest bisection step when refining an event time, in seconds.
 _T_RESOLUTION = 1e-10
@@ -121,16 +121,7 @@ def _run_exact(u, y, state, c, phis, hs, q, jmax):
     Fs = c[_FS]
     ts = c[_TS]
     hmin = hs[jmax]
-    x = state[S_X]
-    v = state[S_V]
-    p = state[S_P]
-    stuck = state[S_STUCK] > 0.5
-    d = state[S_DIR]
-    signwait = state[S_SIGNWAIT] > 0.5
-    if x > xmax or x < 0.0:
-        x = min(max(x, 0.0), xmax)
-        v = 0.0
-        stuck = True
+    x, v, p, stuck, d, signwait = load_state(state, xmax)
     w = np.empty(5)
     for i in range(u.shape[0]):
         ui = u[i]
@@ -221,13 +212,7 @@ def _run_exact(u, y, state, c, phis, hs, q, jmax):
             if not stuck:
                 break
         y[i] = x / xmax * 100.0
-    state[S_Y] = x / xmax * 100.0
-    state[S_X] = x
-    state[S_V] = v
-    state[S_P] = p
-    state[S_STUCK] = 1.0 if stuck else 0.0
-    state[S_DIR] = d
-    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
+    store_state(state, x, v, p, stuck, d, signwait, xmax)
 
 
 class Physical(ValveModel):

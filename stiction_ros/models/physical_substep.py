@@ -25,6 +25,34 @@ from stiction_ros.models.physical_layout import (
 
 
 @njit(cache=True)
+def load_state(state, xmax):
+    """Return (x, v, p, stuck, direction, waiting-for-sign-change), put back inside the travel."""
+    x = state[S_X]
+    v = state[S_V]
+    p = state[S_P]
+    stuck = state[S_STUCK] > 0.5
+    d = state[S_DIR]
+    signwait = state[S_SIGNWAIT] > 0.5
+    if x > xmax or x < 0.0:
+        x = min(max(x, 0.0), xmax)
+        v = 0.0
+        stuck = True
+    return x, v, p, stuck, d, signwait
+
+
+@njit(cache=True)
+def store_state(state, x, v, p, stuck, d, signwait, xmax):
+    """Write the integrators' common state back (the output first, as base.py requires)."""
+    state[S_Y] = x / xmax * 100.0
+    state[S_X] = x
+    state[S_V] = v
+    state[S_P] = p
+    state[S_STUCK] = 1.0 if stuck else 0.0
+    state[S_DIR] = d
+    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
+
+
+@njit(cache=True)
 def run_substep(u, y, state, c):
     """Advance ``state`` over inputs ``u`` with fixed semi-implicit substeps; fill ``y``."""
     M = c[_M]
@@ -49,17 +77,8 @@ def run_substep(u, y, state, c):
     uprev = state[S_UPREV]
     dtm = dt / M
     damp = 1.0 + dt * Fv / M
-    x = state[S_X]
-    v = state[S_V]
-    p = state[S_P]
-    stuck = state[S_STUCK] > 0.5
-    d = state[S_DIR]
-    signwait = state[S_SIGNWAIT] > 0.5
+    x, v, p, stuck, d, signwait = load_state(state, xmax)
     rest = state[S_REST]
-    if x > xmax or x < 0.0:
-        x = min(max(x, 0.0), xmax)
-        v = 0.0
-        stuck = True
     for i in range(u.shape[0]):
         ui = u[i]
         ui = 0.0 if ui < 0.0 else 100.0 if ui > 100.0 else ui
@@ -119,12 +138,6 @@ def run_substep(u, y, state, c):
                 else:
                     signwait = True
         y[i] = x / xmax * 100.0
-    state[S_Y] = x / xmax * 100.0
-    state[S_X] = x
-    state[S_V] = v
-    state[S_P] = p
-    state[S_STUCK] = 1.0 if stuck else 0.0
-    state[S_DIR] = d
-    state[S_SIGNWAIT] = 1.0 if signwait else 0.0
+    store_state(state, x, v, p, stuck, d, signwait, xmax)
     state[S_REST] = rest
     state[S_UPREV] = uprev
