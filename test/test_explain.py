@@ -10,7 +10,7 @@ import pytest
 
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.analysis.mismatch.effects import Context, EFFECTS, IDS
-from stiction_ros.analysis.mismatch.explain import explain
+from stiction_ros.analysis.mismatch.explain import explain, fit_all
 from stiction_ros.closed_loop import write_csv
 from stiction_ros.concealed_cases import concealed_case, SIZES
 from stiction_ros.models import create
@@ -60,6 +60,50 @@ def test_dwell_law_needs_more_travel_after_a_longer_rest():
         return 0.05 * k
     short, long_ = travel_to_break(5), travel_to_break(500)
     assert long_ > short + 0.3
+
+
+def test_the_grid_is_exact_for_its_best_points_and_only_bounds_the_rest():
+    # The grid stops summing a point once it is worse than the keep-th best so far;
+    # the caller takes the keep best, so those must be the exact SSEs, in order.
+    u = op_walk(4000, seed=3)
+    y = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0) + np.random.default_rng(4).normal(
+        0, 0.1, len(u))
+    starts, stops, y0s = np.array([0, 2000]), np.array([1990, 4000]), np.array([y[0], y[2000]])
+    p = kk.plain_params()
+    p[kk.ASYM] = 0.1
+    s_ax, j_ax = np.linspace(2.0, 4.0, 9), np.linspace(0.0, 2.0, 9)
+    exact = np.array([[kk.kano_effects_sse(u, y, starts, stops, y0s, s, j, p, math.inf)
+                       for j in j_ax] for s in s_ax])
+    for keep, limit in ((1, math.inf), (3, math.inf), (3, np.sort(exact, axis=None)[1])):
+        grid = kk.kano_effects_grid(u, y, starts, stops, y0s, s_ax, j_ax, p, limit, keep)
+        order = np.argsort(exact, axis=None)
+        best = order[:keep]
+        within = exact.flat[best] <= limit
+        assert np.array_equal(grid.flat[best][within], exact.flat[best][within])
+        assert np.array_equal(np.argsort(grid, axis=None)[:keep][within], best[within])
+        # Every other entry is its exact SSE or a partial sum already past the bound.
+        bound = min(limit, exact.flat[best[-1]])
+        rest = order[keep:]
+        assert np.all(grid.flat[rest] >= np.minimum(exact.flat[rest], bound))
+        assert np.all(grid.flat[rest] <= exact.flat[rest])
+
+
+def test_an_effect_fit_finds_a_basin_far_from_the_plain_fits_j():
+    # Friction that falls by a third over the record: the plain fit settles at J = 0.44,
+    # the truth averages J = 2.35 over the fitted part.  The effect's fit must reach an
+    # SSE no worse than the truth's own parameters give, so its J cannot stay near the
+    # plain fit's.
+    d, truth = concealed_case('friction_drift', 602, noise=2.0)
+    op, mv = np.asarray(d['op']), np.asarray(d['mv'])
+    n_fit = int(round(0.7 * len(op)))
+    base, problem, ctx, plain_sse, fits = fit_all(op, mv, [(0, n_fit)], 1.0)
+    drift = next(f for f in fits if f.effect == 'friction_drift')
+    valve = create('kano_effects', **{k: v for k, v in truth['valve'].items() if k != 'model'})
+    model = valve.simulate(op[:n_fit], y0=float(problem.y0s[0]))
+    truth_sse = float(np.sum((model - mv[:n_fit]) ** 2))
+    assert abs(base.J - truth['valve']['J']) > 1.0
+    assert drift.sse <= 1.02 * truth_sse < plain_sse
+    assert abs(drift.J - truth['valve']['J']) < 0.3 and drift.params['change_over_fit'] < 0
 
 
 @pytest.fixture(scope='module')

@@ -4,12 +4,13 @@ Fitting one candidate effect: its parameters together with S and J.
 The landscape in (S, J) is piecewise constant and rugged, and an effect moves
 the best (S, J) (a dwell term takes static friction out of S, an actuator lag
 delays every breakaway).  So for each grid value of the effect's parameters
-the fit searches (S, J) coarse-to-fine in a window around the plain fit,
-keeps the best few effect values, refines (S, J) there to the 0.001 % grid
-and then bisects the effect parameter between its neighbours.  A fit that
-stops in the wrong basin would look like missing physics, so every stage
-keeps several candidates, and the plain model (effect at zero) is always
-among them: an extended fit is never worse than the plain one.
+the fit searches S in a window around the plain fit and J over its whole
+range (one coarse grid and one refinement), keeps the best few effect
+values, refines (S, J) there to the 0.001 % grid and then bisects the effect
+parameter between its neighbours.  A fit that stops in the wrong basin would
+look like missing physics, so every stage keeps several candidates, and the
+plain model (effect at zero) is always among them: an extended fit is never
+worse than the plain one.
 """
 
 from dataclasses import dataclass, field
@@ -23,11 +24,13 @@ from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 # 0.01 % moved enough breakaways by a sample to triple its MSE (0.010 -> 0.033),
 # which left a structured residual that looked like missing physics.
 RESOLUTION = 0.001
-# Points per axis of the coarse (S, J) grid tried with each effect value.  An effect
-# can move the best J far from the plain fit's (0.47 -> 1.54 for one Stribeck valve),
-# and its basin is a few hundredths wide: on 20 dwell and Stribeck cases 13 points
-# named 17 right against 13 with 9, at 26 s instead of 22 s for the slowest record.
-COARSE_POINTS = 13
+# Points across the S window of the coarse (S, J) grid tried with each effect value;
+# the J axis covers all of [0, S0 + half the S window] at the same step.  An effect can
+# move the best J far from the plain fit's (0.07 -> 1.88 for one Stribeck valve, 0.44
+# -> 2.35 for a drifting one), out of any window around it, and its basin is a few
+# hundredths wide.  On the 65 cases of make bench-explain: J window +-0.35 S with 13
+# points named 49 of 55 effects; all of J with 13 points 52, with 17 points 53.
+COARSE_POINTS = 17
 
 
 @dataclass
@@ -76,12 +79,12 @@ class Problem:
         self.y0s = start_positions(self.y, self.starts, self.stops)
         self.evaluations = 0
 
-    def grid(self, s_values, j_values, p, limit=math.inf):
-        """Return the SSE grid over (S, J) with effect vector ``p``."""
+    def grid(self, s_values, j_values, p, limit=math.inf, keep=1):
+        """Return the SSE grid over (S, J) with effect ``p``, exact for the ``keep`` best."""
         self.evaluations += len(s_values) * len(j_values)
         return kk.kano_effects_grid(self.u, self.y, self.starts, self.stops, self.y0s,
                                     np.asarray(s_values, dtype=np.float64),
-                                    np.asarray(j_values, dtype=np.float64), p, limit)
+                                    np.asarray(j_values, dtype=np.float64), p, limit, keep)
 
     def sse(self, S, J, p):
         """Return the SSE of one parameter set."""
@@ -99,27 +102,36 @@ def _axis(centre, half, step):
     return vals[vals >= 0.0]
 
 
-def local_sj(problem, p, S0, J0, half_s, half_j, points=9, keep=3, coarse_only=False,
-             limit=math.inf):
+def local_sj(problem, p, S0, J0, half_s, half_j, points=9, keep=3, levels=math.inf,
+             limit=math.inf, j_max=None):
     """
     Return (sse, S, J): a coarse-to-fine search of (S, J) in a window around (S0, J0).
 
-    Evaluations stop once past ``limit`` (nothing worse than it matters).
+    ``levels`` caps the refinements after the coarse grid (each a quarter of the
+    step, down to RESOLUTION).  Evaluations stop once past ``limit`` (nothing worse
+    than it matters; if nothing on the coarse grid beats it, no refinement is
+    tried).  With ``j_max`` the J axis runs over all of [0, j_max] at the S axis's
+    step.
     """
     step = max(2 * max(half_s, half_j) / (points - 1), RESOLUTION)
-    s_ax, j_ax = _axis(S0, half_s, step), _axis(J0, half_j, step)
-    scores = problem.grid(s_ax, j_ax, p, limit)
-    best = _best(scores, s_ax, j_ax, keep)
-    if coarse_only:
+    s_ax = _axis(S0, half_s, step)
+    if j_max is None:
+        j_ax = _axis(J0, half_j, step)
+    else:
+        j_ax = _axis(J0, max(J0, j_max - J0), step)
+        j_ax = j_ax[j_ax <= j_max + 0.5 * step]
+    best = _best(problem.grid(s_ax, j_ax, p, limit, keep), s_ax, j_ax, keep)
+    if best[0][0] > limit:
         return best[0]
-    while step > RESOLUTION:
+    while step > RESOLUTION and levels > 0:
+        levels -= 1
         fine = max(step / 4.0, RESOLUTION)
         found = {(round(s / RESOLUTION), round(j / RESOLUTION)): (e, s, j) for e, s, j in best}
         limit = best[-1][0]
         for _, s0, j0 in list(best):
             # Half a coarse step each way covers the cell; the kept neighbours cover the rest.
             s_ax, j_ax = _axis(s0, 0.5 * step, fine), _axis(j0, 0.5 * step, fine)
-            for e, s, j in _best(problem.grid(s_ax, j_ax, p, limit), s_ax, j_ax, keep):
+            for e, s, j in _best(problem.grid(s_ax, j_ax, p, limit, keep), s_ax, j_ax, keep):
                 found.setdefault((round(s / RESOLUTION), round(j / RESOLUTION)), (e, s, j))
         best = sorted(found.values())[:keep]
         step = fine
@@ -140,9 +152,13 @@ def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
     coarse = []
     for theta in thetas:
         p = effect.vector(theta, ctx)
-        # Only what beats the plain fit matters, so nothing is summed past it.
+        # Only the best few effect values go on, and only if they beat the plain fit,
+        # so nothing is summed past the worse of the two.  One refinement level ranks
+        # the values by their basins rather than by where the coarse grid happens to fall.
+        bound = min(plain_sse, sorted(c[0] for c in coarse)[keep - 1]
+                    if len(coarse) >= keep else math.inf)
         sse, s, j = local_sj(problem, p, S0, J0, half_s, half_j, points=COARSE_POINTS,
-                             coarse_only=True, limit=plain_sse)
+                             levels=1, limit=bound, j_max=S0 + half_s)
         coarse.append((sse, theta, s, j))
     coarse.sort(key=lambda x: x[0])
     results = []

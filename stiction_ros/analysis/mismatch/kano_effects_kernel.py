@@ -1,8 +1,8 @@
 """
 Kano's model with the physics of docs EFFECTS.md switched on by parameters.
 
-One compiled step serves the simulator (``kano_effects_output``) and the fits
-(``kano_effects_sse``), so the model that explains a recording is the model
+One compiled loop serves the simulator (``kano_effects_run``, ``kano_effects_output``)
+and the fits (``kano_effects_sse``), so the model that explains a recording is the model
 that generated the concealed test cases.  Every extra parameter at zero gives
 Kano's plain model sample for sample (tested), which makes the candidates
 nested.  The parameter vector ``p`` is indexed by the constants below:
@@ -25,11 +25,16 @@ nested.  The parameter vector ``p`` is indexed by the constants below:
 
 import numpy as np
 
-from stiction_ros.analysis.sse_kernels import _clip, njit
+from stiction_ros.analysis.sse_kernels import njit
 
 (A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
  STRIBECK, CREEP) = range(12)
 N_PARAMS = 12
+
+
+@njit(cache=True, inline='always')
+def _clip(x):
+    return 0.0 if x < 0.0 else 100.0 if x > 100.0 else x
 
 
 def plain_params():
@@ -41,14 +46,14 @@ def plain_params():
     return p
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _scale(p, d, y, k):
     m = 1.0 + p[ASYM] * d + p[POS] * (y - p[POS_REF]) / 50.0
     m += p[DRIFT] * (k - p[DRIFT_MID]) / p[DRIFT_SPAN]
     return m if m > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _breakaway_fx(d, rel, S, J, p, y, k, rest):
     # Kano's breakaway with the band of the direction the valve would move in.
     grow = 0.0
@@ -72,34 +77,70 @@ def _breakaway_fx(d, rel, S, J, p, y, k, rest):
     return 0.0
 
 
+# The state of one run, as kano_effects_run's callers hold it between calls.
+(ST_YM, ST_U1, ST_U2, ST_US, ST_RESTING, ST_D, ST_YK, ST_UF, ST_SINCE, ST_YREST,
+ ST_K) = range(11)
+STATE_SIZE = 11
+
+
 @njit(cache=True)
-def _step(uraw, k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest):
-    uf = p[A_IN] * uf + (1.0 - p[A_IN]) * uraw
-    uk = _clip(uf)
-    if not resting and ((uk - u1) * (u1 - u2) <= 0.0 or abs(uk - u1) < p[STRIBECK]):
-        us = u1
-        resting = True
-        since = k
-        yrest = yk
-    if resting:
-        nd = _breakaway_fx(d, uk - us, S, J, p, yk, k, float(k - since))
-        if nd != 0.0:
-            d = nd
-            resting = False
-    if resting:
-        yk = _clip(yrest + p[CREEP] * (uk - us))
-    else:
-        m = _scale(p, d, yk, k)
-        yk = _clip(uk - d * 0.5 * (S - J) * m)
-    ym = p[B_OUT] * ym + (1.0 - p[B_OUT]) * yk
-    return uf, uk, u1, us, resting, d, yk, ym, since, yrest
+def _segment(u, y, i0, i1, S, J, p, st, sse, limit, out, resting_out):
+    # The one loop behind the fits, the outputs and the simulator.  Written out
+    # with the state in locals rather than as a step function returning a tuple:
+    # numba kept that 10-tuple in memory, three times slower per sample.
+    # With ``y`` non-empty it returns ``sse`` plus this stretch's squared errors
+    # (stopping once past ``limit``); with ``out`` non-empty it writes the position
+    # there, and the resting flag into ``resting_out`` when that is non-empty.
+    score, write, flags = y.shape[0] > 0, out.shape[0] > 0, resting_out.shape[0] > 0
+    ym, u1, u2, us, d, yk = st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK]
+    uf, since, yrest, k = st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K]
+    resting = st[ST_RESTING] > 0.5
+    half_kinetic = 0.5 * (S - J)
+    for i in range(i0, i1):
+        uf = p[A_IN] * uf + (1.0 - p[A_IN]) * u[i]
+        uk = _clip(uf)
+        if not resting and ((uk - u1) * (u1 - u2) <= 0.0 or abs(uk - u1) < p[STRIBECK]):
+            us = u1
+            resting = True
+            since = k
+            yrest = yk
+        if resting:
+            nd = _breakaway_fx(d, uk - us, S, J, p, yk, k, k - since)
+            if nd != 0.0:
+                d = nd
+                resting = False
+        if resting:
+            yk = _clip(yrest + p[CREEP] * (uk - us))
+        else:
+            yk = _clip(uk - d * half_kinetic * _scale(p, d, yk, k))
+        ym = p[B_OUT] * ym + (1.0 - p[B_OUT]) * yk
+        u2 = u1
+        u1 = uk
+        k += 1.0
+        if write:
+            out[i] = ym
+            if flags:
+                resting_out[i] = 1.0 if resting else 0.0
+        if score:
+            e = ym - y[i]
+            sse += e * e
+            if sse > limit:
+                break
+    st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK] = ym, u1, u2, us, d, yk
+    st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K] = uf, since, yrest, k
+    st[ST_RESTING] = 1.0 if resting else 0.0
+    return sse
 
 
 @njit(cache=True)
 def _at_rest(u0, k, y0):
-    # The state of a valve resting at y0 with no friction force stored, before sample k.
+    # A valve resting at y0 with no friction force stored, before sample k.
+    st = np.empty(STATE_SIZE)
     u1 = _clip(u0)
-    return u0, u1, u1, u1, True, 0.0, y0, y0, k, y0
+    st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK] = y0, u1, u1, u1, 0.0, y0
+    st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K] = u0, k, y0, k
+    st[ST_RESTING] = 1.0
+    return st
 
 
 @njit(cache=True)
@@ -110,41 +151,47 @@ def kano_effects_sse(u, y, starts, stops, y0s, S, J, p, limit):
     Segment ``s`` starts at rest at position ``y0s[s]``.
     """
     sse = 0.0
+    none = np.empty(0)
     for s in range(starts.shape[0]):
-        i0 = starts[s]
-        uf, u1, u2, us, resting, d, yk, ym, since, yrest = _at_rest(u[i0], i0, y0s[s])
-        for k in range(i0, stops[s]):
-            uf, u1, u2, us, resting, d, yk, ym, since, yrest = _step(
-                u[k], k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest)
-            e = ym - y[k]
-            sse += e * e
-            if sse > limit:
-                return sse
+        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
+        sse = _segment(u, y, starts[s], stops[s], S, J, p, st, sse, limit, none, none)
+        if sse > limit:
+            return sse
     return sse
 
 
 @njit(cache=True)
-def kano_effects_grid(u, y, starts, stops, y0s, s_values, j_values, p, limit):
-    """Return the SSE of every (S, J) on a grid with the effect parameters ``p``."""
+def kano_effects_grid(u, y, starts, stops, y0s, s_values, j_values, p, limit, keep):
+    """
+    Return the SSE of every (S, J) on a grid with the effect parameters ``p``.
+
+    Only the ``keep`` best points matter to the caller, so each point stops summing
+    once it is worse than the ``keep``-th best so far (or ``limit``): those best
+    points are exact, every other entry is merely known to be worse.
+    """
     out = np.empty((s_values.shape[0], j_values.shape[0]))
+    best = np.full(keep, np.inf)
     for i in range(s_values.shape[0]):
         for j in range(j_values.shape[0]):
-            out[i, j] = kano_effects_sse(u, y, starts, stops, y0s, s_values[i], j_values[j],
-                                         p, limit)
+            e = kano_effects_sse(u, y, starts, stops, y0s, s_values[i], j_values[j],
+                                 p, min(limit, best[keep - 1]))
+            out[i, j] = e
+            if e < best[keep - 1]:
+                m = keep - 1
+                while m > 0 and best[m - 1] > e:
+                    best[m] = best[m - 1]
+                    m -= 1
+                best[m] = e
     return out
 
 
 @njit(cache=True)
 def kano_effects_output(u, starts, stops, y0s, S, J, p, out, resting_out):
     """Write the model's position into ``out`` (and 1.0 where at rest into ``resting_out``)."""
+    none = np.empty(0)
     for s in range(starts.shape[0]):
-        i0 = starts[s]
-        uf, u1, u2, us, resting, d, yk, ym, since, yrest = _at_rest(u[i0], i0, y0s[s])
-        for k in range(i0, stops[s]):
-            uf, u1, u2, us, resting, d, yk, ym, since, yrest = _step(
-                u[k], k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest)
-            out[k] = ym
-            resting_out[k] = 1.0 if resting else 0.0
+        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
+        _segment(u, none, starts[s], stops[s], S, J, p, st, 0.0, np.inf, out, resting_out)
 
 
 @njit(cache=True)
@@ -152,16 +199,8 @@ def kano_effects_run(u, out, st, S, J, p):
     """
     Advance the model over ``u`` from the state array ``st`` (updated in place).
 
-    ``st`` = [position seen (after any measurement lag), u(k-1), u(k-2), u_s,
-    resting, direction, position, lagged input, rest start, rest position,
-    sample counter]; ``stiction_ros.models.kano_effects`` builds it.
+    ``st`` holds the ``ST_*`` entries (position seen after any measurement lag,
+    u(k-1), u(k-2), u_s, resting, direction, position, lagged input, rest start,
+    rest position, sample counter); ``stiction_ros.models.kano_effects`` builds it.
     """
-    ym, u1, u2, us, resting, d, yk, uf, since, yrest, k = (
-        st[0], st[1], st[2], st[3], st[4] > 0.5, st[5], st[6], st[7], st[8], st[9], st[10])
-    for i in range(u.shape[0]):
-        uf, u1, u2, us, resting, d, yk, ym, since, yrest = _step(
-            u[i], k, S, J, p, uf, u1, u2, us, resting, d, yk, ym, since, yrest)
-        out[i] = ym
-        k += 1.0
-    st[0], st[1], st[2], st[3], st[4], st[5] = ym, u1, u2, us, 1.0 if resting else 0.0, d
-    st[6], st[7], st[8], st[9], st[10] = yk, uf, since, yrest, k
+    _segment(u, np.empty(0), 0, u.shape[0], S, J, p, st, 0.0, np.inf, out, np.empty(0))
