@@ -110,6 +110,36 @@ def test_step_equals_simulate(name):
     np.testing.assert_array_equal(whole, one_by_one)
 
 
+COMPILED_CASES = [
+    ('kano', {}), ('kano', {'tau': 3.0}),
+    ('choudhury', {}), ('choudhury', {'lam': 0.6}),
+    ('choudhury', {'characteristic': 'equal_percentage', 'output_units': 'mA'}),
+    ('choudhury', {'characteristic': 'square_root', 'input_units': 'mA'}),
+    ('he', {}), ('stenman', {}),
+]
+
+
+@pytest.mark.parametrize('name, extra', COMPILED_CASES)
+@pytest.mark.parametrize('S, J', [(3.0, 1.0), (4.0, 4.0), (2.0, 0.0), (2.0, 5.0), (0.0, 0.0)])
+def test_compiled_kernel_is_the_pure_python_model_sample_for_sample(name, extra, S, J):
+    # simulate() runs compiled code; the pure-Python kernel next to each model is the
+    # oracle.  Random walks through both end stops, a sine, steps and a constant stretch
+    # visit every branch (stick, slip, reversal, saturation).
+    kw = {k: v for k, v in (('S', S), ('J', J)) if k in MODELS[name].PARAMS}
+    model = create(name, **kw, **extra)
+    u = np.concatenate([random_walk(4000, seed=7, std=2.0), slow_sine(30.0, 700, 2),
+                        np.repeat([20.0, 80.0, 79.0, 81.0], 50), np.full(30, 81.0)])
+    if extra.get('input_units') == 'mA':
+        u = 4.0 + 0.16 * u
+    for y0 in (None, 37.5):
+        fast, reference = model.simulate(u, y0=y0), model.simulate_reference(u, y0=y0)
+        np.testing.assert_array_equal(fast, reference)
+        # The state a run leaves behind is the same too, so step() continues alike.
+        after = model.step(u[-1] + 1.0)
+        model.simulate_reference(u, y0=y0)
+        assert model.step(u[-1] + 1.0) == after
+
+
 def test_stuck_valve_holds_inside_the_band():
     # After a reversal the valve stays put while the input wanders less than S.
     wander = 2.4 * np.abs(np.sin(np.linspace(0, 20, 800)))

@@ -43,9 +43,17 @@ def as_signal(u, name='input'):
     a = np.asarray(u, dtype=np.float64)
     if a.ndim != 1:
         a = a.reshape(-1)
-    if a.size and not np.all(np.isfinite(a)):
-        bad = int(np.flatnonzero(~np.isfinite(a))[0])
-        raise ModelError(f'{name} has a non-finite value at index {bad}: {a[bad]}')
+    # a.a is finite only if every sample is (NaN and inf propagate), and BLAS computes it
+    # three times faster than np.isfinite makes its mask: on 1e6 samples that mask cost
+    # a fifth of a compiled simulate().  Only a non-finite sum (or squares past 1e308)
+    # needs the sample-by-sample look.
+    with np.errstate(over='ignore', invalid='ignore'):
+        square_sum = float(np.dot(a, a)) if a.size else 0.0
+    if not math.isfinite(square_sum):
+        finite = np.isfinite(a)
+        if not np.all(finite):
+            bad = int(np.flatnonzero(~finite)[0])
+            raise ModelError(f'{name} has a non-finite value at index {bad}: {a[bad]}')
     return a
 
 
@@ -137,12 +145,24 @@ class ValveModel:
 
     def simulate(self, u, y0=None):
         """Reset, run the whole input array and return positions of the same length."""
+        return self._simulate(u, y0, self._run)
+
+    def simulate_reference(self, u, y0=None):
+        """
+        Return :meth:`simulate` computed by the model's pure-Python kernel.
+
+        Where ``simulate`` runs compiled code, this is the oracle it is tested
+        against sample for sample; elsewhere the two are the same code.
+        """
+        return self._simulate(u, y0, self._run_reference)
+
+    def _simulate(self, u, y0, run):
         a = as_signal(u, 'valve input')
         self.reset(y0)
         y = np.empty_like(a)
         if a.size:
             self.state = self._new_state(float(a[0]))
-            self._run(a, y, self.state)
+            run(a, y, self.state)
         return y
 
     @property
@@ -160,3 +180,7 @@ class ValveModel:
     def _run(self, u, y, state):
         """Advance over the array ``u``, writing ``y`` and updating ``state`` in place."""
         raise NotImplementedError
+
+    def _run_reference(self, u, y, state):
+        # Models with a compiled _run override this with their pure-Python kernel.
+        self._run(u, y, state)

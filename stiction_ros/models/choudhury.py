@@ -21,6 +21,7 @@ from stiction_ros.models.breakaway import breakaway
 from stiction_ros.models.characteristics import (
     apply_characteristic, characteristic_code, CHARACTERISTICS, invert_characteristic,
     ma_to_percent, percent_to_ma, UNITS)
+from stiction_ros.models.compiled import choudhury_run
 
 # state layout: output, stem position, filtered input x (k-1), sign of the
 # previous slope, stick point x_ss, stuck flag, last direction of motion
@@ -66,6 +67,11 @@ class Choudhury(ValveModel):
         return percent_to_ma(flow) if self._ma_out else flow
 
     def _run(self, u, y, st):
+        p = self._params
+        choudhury_run(u, y, st, p['S'], p['J'], p['lam'], self._ma_in, self._char,
+                      p['rangeability'], self._ma_out)
+
+    def _run_reference(self, u, y, st):
         p = self._params
         lam = p['lam']
         for k in range(len(u)):

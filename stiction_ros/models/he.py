@@ -11,6 +11,7 @@ so that S and J mean what they mean in Kano's and Choudhury's models.
 import math
 
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.compiled import he_run
 
 _Y, _UPREV, _UR = range(3)
 
@@ -29,6 +30,9 @@ class He(ValveModel):
         return [uc if y0 is None else y0, uc, 0.0]
 
     def _run(self, u, y, st):
+        he_run(u, y, st, self._params['S'], self._params['J'])
+
+    def _run_reference(self, u, y, st):
         he_kernel(u, y, st, self._params['S'], self._params['J'])
 
 

@@ -10,6 +10,7 @@ the friction logic, as Kano proposed for noisy controller outputs.
 
 from stiction_ros.models.base import ValveModel
 from stiction_ros.models.breakaway import breakaway
+from stiction_ros.models.compiled import kano_run
 from stiction_ros.models.lags import first_order_pole
 
 # state layout: position, u(k-1), u(k-2), u_s, resting flag, direction,
@@ -38,6 +39,9 @@ class Kano(ValveModel):
         return [y, uc, uc, uc, 1.0, 0.0, u0]
 
     def _run(self, u, y, st):
+        kano_run(u, y, st, self._params['S'], self._params['J'], self._a)
+
+    def _run_reference(self, u, y, st):
         kano_kernel(u, y, st, self._params['S'], self._params['J'], self._a)
 
 

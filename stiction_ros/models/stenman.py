@@ -8,6 +8,7 @@ chapter prints ``u(k-1)`` in the first branch; a stuck valve holds its previous
 """
 
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.compiled import stenman_run
 
 
 class Stenman(ValveModel):
@@ -22,6 +23,9 @@ class Stenman(ValveModel):
         return [min(max(u0, 0.0), 100.0) if y0 is None else y0]
 
     def _run(self, u, y, st):
+        stenman_run(u, y, st, self._params['S'])
+
+    def _run_reference(self, u, y, st):
         stenman_kernel(u, y, st, self._params['S'])
 
 

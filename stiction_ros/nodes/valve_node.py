@@ -17,6 +17,7 @@ import sys
 
 from std_msgs.msg import Float64
 from stiction_ros.models import create, ModelError, MODELS
+from stiction_ros.models.compiled import warm_up
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
@@ -54,6 +55,7 @@ class ValveNode(SampledNode):
                   'Used at start-up only.', 0.0, 100.0, read_only=True),
         ] + self.model_specs)
         self.check_startup()
+        warm_up()
         self.model = self._build(self.values['model'], self.values)
         self.model.reset(y0=self.values['initial_position'])
         self.op = None
