@@ -14,6 +14,7 @@ import sys
 import tempfile
 import time
 
+from bench.batch_bench import bench_batch, markdown as batch_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
 import numpy as np
 
@@ -98,6 +99,8 @@ def main():
     models = bench_models()
     te, ts, gap, moved = bench_physical()
     ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
+    loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
+    batch = bench_batch(loops) if loops.is_dir() else None
     lines = [
         '# Benchmarks',
         '',
@@ -138,6 +141,8 @@ def main():
         '',
     ]
     lines += identify_markdown(ident)
+    if batch:
+        lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')
     out = ROOT / 'docs' / 'BENCHMARKS.md'
     out.write_text('\n'.join(lines), encoding='utf-8')
     print(out.read_text())

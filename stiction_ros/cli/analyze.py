@@ -9,6 +9,11 @@ stiction-analyze: is this valve sticking, how much, and how well do the models f
 INPUT is a rosbag2 directory or .mcap file, a CSV (t, op and any of mv, pv,
 sp) or a historian export.  Problems with the input end in one line on stderr
 and exit status 2.
+
+INPUT may also be a folder of recordings or a quoted glob ('plant/**/*.csv'):
+each is analysed on its own, over ``--jobs`` processes or a Dask cluster
+(``--scheduler tcp://HOST:8786``); one line per recording, ``--json`` the
+summary of all, ``--out-dir`` a report per recording (stiction_ros.cli.batch).
 """
 
 import argparse
@@ -78,7 +83,66 @@ def parser():
     p.add_argument('--html', dest='html_path', metavar='REPORT.html',
                    help='write the HTML report (figures embedded, PNGs beside it)')
     p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    many = p.add_argument_group('many recordings (INPUT a folder or a quoted glob)')
+    many.add_argument('--jobs', type=int, default=None,
+                      help='worker processes (default: every core this process may use)')
+    many.add_argument('--scheduler', metavar='ADDRESS',
+                      help='run on this Dask cluster (tcp://host:8786) instead of local processes')
+    many.add_argument('--out-dir', metavar='DIR', help='write a JSON report per recording here')
     return p
+
+
+def _forwarded(args):
+    # The options of one recording's analysis, for the batch workers.
+    argv = ['--model', args.model, '--loop-type', args.loop_type,
+            '--holdout', repr(args.holdout), '--bootstrap', str(args.bootstrap)]
+    for flag, value in (('--S', args.S), ('--J', args.J), ('--namespace', args.namespace)):
+        if value is not None:
+            argv += [flag, str(value)]
+    if args.window:
+        argv += ['--window', *map(repr, args.window)]
+    for flag, on in (('--fit-filter', args.fit_filter), ('--no-hammerstein', args.no_hammerstein),
+                     ('--explain', args.explain)):
+        if on:
+            argv.append(flag)
+    return argv
+
+
+def run_many(args, paths, say):
+    """Analyse every recording in ``paths``; print a line each; return the exit status."""
+    from stiction_ros.cli import batch
+    if args.html_path:
+        raise ValueError('--html takes one recording; for many use --out-dir (JSON reports)')
+    jobs = args.jobs if args.jobs is not None else batch.default_jobs()
+    if jobs < 1:
+        raise ValueError(f'--jobs must be 1 or more, got {jobs}')
+    where = f'Dask cluster {args.scheduler}' if args.scheduler else f'{jobs} process(es)'
+    say(f'{len(paths)} recordings from {args.input} on {where}')
+    root = args.input if Path(args.input).is_dir() else '.'
+    rows, seconds = batch.run_batch(paths, _forwarded(args), jobs, args.scheduler,
+                                    args.out_dir, root, say)
+    for row in rows:
+        if row['ok']:
+            # Recordings often share a tag name; the path tells them apart.
+            first, *rest = row['summary'].split('\n')
+            print('\n'.join([f'{row["input"]}: {first.split(": ", 1)[-1]}', *rest]))
+        else:
+            print(f'{row["input"]}: error: {row["error"]}')
+    failed = sum(not r['ok'] for r in rows)
+    tally = {}
+    for r in rows:
+        if r['ok']:
+            word = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[r['detected']]
+            tally[word] = tally.get(word, 0) + 1
+    print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
+          + ', '.join(f'{n} {w}' for w, n in sorted(tally.items()))
+          + (f', {failed} failed' if failed else ''))
+    if args.json_path:
+        write_text(args.json_path, to_json_text({
+            'input': args.input, 'recordings': len(rows), 'failed': failed,
+            'seconds': round(seconds, 3), 'workers': where, 'rows': rows}))
+        say(f'wrote {args.json_path}')
+    return EXIT_INPUT if failed else 0
 
 
 def run(args, say):
@@ -197,6 +261,10 @@ def main(argv=None):
         if not args.quiet:
             print(msg, file=sys.stderr, flush=True)
     try:
+        from stiction_ros.cli.batch import expand
+        paths = expand(args.input)
+        if paths is not None:
+            return run_many(args, paths, say)
         report = run(args, say)
     except (InputError, IdentifyError, ValueError, OSError) as exc:
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)

@@ -1,0 +1,84 @@
+"""stiction-analyze on a folder or a glob: fan-out over processes and over a Dask cluster."""
+
+import json
+from pathlib import Path
+import shutil
+
+from data_paths import plant_loops_dir
+import pytest
+
+from stiction_ros.cli.analyze import EXIT_INPUT, main
+from stiction_ros.closed_loop import write_csv
+from stiction_ros.concealed_cases import concealed_case
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope='module')
+def plant_folder(tmp_path_factory):
+    # Two real plant loops in nested folders, a broken CSV and a file that is no recording.
+    loops = plant_loops_dir()
+    if loops is None:
+        pytest.skip('the shared plant loops are not beside this checkout')
+    root = tmp_path_factory.mktemp('audit')
+    picks = sorted((loops / 'stiction').glob('*.txt'))[:1] + \
+        sorted((loops / 'no_stiction').glob('*.txt'))[:1]
+    for i, src in enumerate(picks):
+        (root / f'unit{i}').mkdir()
+        shutil.copy(src, root / f'unit{i}' / src.name)
+    # A simulated loop with the valve position, so that S and J are identified too.
+    record, _ = concealed_case('asymmetric_friction', 2, duration=2000.0)
+    write_csv(root / 'unit0' / 'loop.csv', {k: record[k] for k in ('t', 'sp', 'pv', 'op', 'mv')})
+    picks.append(root / 'unit0' / 'loop.csv')
+    (root / 'broken.csv').write_text('t,op\n0,1\n1,\n')
+    (root / 'README.md').write_text('not a recording\n')
+    return root, picks
+
+
+def _rows(path):
+    return {Path(r['input']).name: r for r in json.loads(path.read_text())['rows']}
+
+
+def test_a_folder_is_analysed_recording_by_recording_and_a_bad_one_is_one_row(
+        plant_folder, tmp_path, capsys):
+    root, picks = plant_folder
+    code = main([str(root), '--jobs', '2', '--quiet', '--json', str(tmp_path / 's.json'),
+                 '--out-dir', str(tmp_path / 'reports')])
+    assert code == EXIT_INPUT       # one recording failed; the others are still reported
+    rows = _rows(tmp_path / 's.json')
+    assert set(rows) == {p.name for p in picks} | {'broken.csv'}
+    assert not rows['broken.csv']['ok'] and 'broken.csv' in rows['broken.csv']['error']
+    for p in picks:
+        row = rows[p.name]
+        assert row['ok'], row
+        assert bool(row['fits']) == (p.suffix == '.csv')     # the plant loops have no MV
+        report = json.loads(Path(row['report']).read_text())
+        assert report['stiction']['detected'] == row['detected']
+    out = capsys.readouterr().out
+    assert '4 recordings' in out and '1 failed' in out and 'error:' in out
+
+
+def test_the_same_audit_runs_on_a_dask_cluster(plant_folder, tmp_path):
+    distributed = pytest.importorskip('distributed')
+    root, picks = plant_folder
+    pattern = str(root / 'unit*' / '*.*')
+    assert main([pattern, '--jobs', '1', '--quiet', '--json', str(tmp_path / 'local.json')]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, host='127.0.0.1') as cluster:
+        assert main([pattern, '--scheduler', cluster.scheduler_address, '--quiet',
+                     '--json', str(tmp_path / 'dask.json')]) == 0
+    local, dask = _rows(tmp_path / 'local.json'), _rows(tmp_path / 'dask.json')
+    assert set(local) == set(dask) == {p.name for p in picks}
+    assert local['loop.csv']['fits']
+    for name in local:
+        assert dask[name]['fits'] == local[name]['fits']
+        assert dask[name]['score'] == local[name]['score']
+        assert dask[name]['detected'] == local[name]['detected']
+    assert 'Dask cluster tcp://127.0.0.1' in json.loads((tmp_path / 'dask.json').read_text())[
+        'workers']
+
+
+def test_a_glob_that_matches_nothing_is_a_one_line_error(tmp_path, capsys):
+    assert main([str(tmp_path / '*.csv'), '--quiet']) == EXIT_INPUT
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'no file matches' in err[0]
