@@ -29,6 +29,7 @@ from stiction_ros.analysis.identify import IdentifyError
 from stiction_ros.analysis.record import InputError
 
 EXIT_INPUT = 2
+VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}
 
 
 def _jsonable(x):
@@ -132,7 +133,7 @@ def run_many(args, paths, say):
     tally = {}
     for r in rows:
         if r['ok']:
-            word = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[r['detected']]
+            word = VERDICT_WORDS[r['detected']]
             tally[word] = tally.get(word, 0) + 1
     print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
           + ', '.join(f'{n} {w}' for w, n in sorted(tally.items()))
@@ -231,7 +232,7 @@ def write_html(analysis, path, say):
 def summary_line(report):
     """Return the one-line verdict printed at the end."""
     st = report['stiction']
-    word = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[st['detected']]
+    word = VERDICT_WORDS[st['detected']]
     fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                      for f in report['fits'])
     line = f'{report.get("name") or report["input"].get("path")}: {word} (score ' \

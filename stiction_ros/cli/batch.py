@@ -127,8 +127,8 @@ def progress_line(done, total, elapsed, row):
     filled = int(width * done / total)
     rate = done / elapsed if elapsed > 0 else 0.0
     eta = (total - done) / rate if rate > 0 else 0.0
-    verdict = ('error' if not row['ok'] else
-               {True: 'stiction', False: 'no stiction', None: 'inconclusive'}[row['detected']])
+    from stiction_ros.cli.analyze import VERDICT_WORDS
+    verdict = VERDICT_WORDS[row['detected']] if row['ok'] else 'error'
     return (f'[{"#" * filled}{"." * (width - filled)}] {done}/{total} {rate:.2f}/s '
             f'ETA {eta:.0f} s  {Path(row["input"]).name}: {verdict}')
 

@@ -16,25 +16,9 @@ import math
 
 import numpy as np
 
-from stiction_ros.analysis.sse_kernels import njit
+# Kano's step, the breakaway rule and the clamp are identify's compiled ones.
+from stiction_ros.analysis.sse_kernels import _breakaway, _clip, _kano_step, njit
 from stiction_ros.models.characteristics import apply_characteristic
-
-
-@njit(cache=True, inline='always')
-def _clip(x):
-    return 0.0 if x < 0.0 else 100.0 if x > 100.0 else x
-
-
-@njit(cache=True, inline='always')
-def _breakaway(d, rel, S, J):
-    # stiction_ros.models.breakaway.breakaway, compiled.
-    if d == 0.0:
-        return math.copysign(1.0, rel) if abs(rel) > 0.5 * (S + J) else 0.0
-    if -d * rel > S:
-        return -d
-    if d * rel > J:
-        return d
-    return 0.0
 
 
 _characteristic = njit(cache=True)(apply_characteristic)
@@ -47,20 +31,8 @@ def kano_run(u, y, st, S, J, a):
     yk, u1, u2, us, d, uf = st[0], st[1], st[2], st[3], st[5], st[6]
     resting = st[4] == 1.0
     for k in range(u.shape[0]):
-        uf = a * uf + (1.0 - a) * u[k]
-        uk = _clip(uf)
-        if not resting and (uk - u1) * (u1 - u2) <= 0.0:
-            us = u1
-            resting = True
-        if resting:
-            nd = _breakaway(d, uk - us, S, J)
-            if nd != 0.0:
-                d = nd
-                resting = False
-        if not resting:
-            yk = _clip(uk - d * fd)
-        u2 = u1
-        u1 = uk
+        uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2, us,
+                                                    resting, d, yk)
         y[k] = yk
     st[0], st[1], st[2], st[3], st[5], st[6] = yk, u1, u2, us, d, uf
     st[4] = 1.0 if resting else 0.0
