@@ -16,6 +16,7 @@ import time
 
 from bench.batch_bench import bench_batch, markdown as batch_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
+from bench.physical_bench import bench_physical, markdown as physical_markdown
 import numpy as np
 
 from stiction_ros.cli.study import machine_description
@@ -81,23 +82,10 @@ def bench_models(n=1_000_000, n_python=100_000):
     return rows
 
 
-def bench_physical(n=20_000):
-    """Physical model at a 1 ms loop step: exact integrator against 100 substeps."""
-    # A fast I/P (0.2 s) and a wide sine, so the stem sticks and slides every cycle.
-    op = 50 + 40 * np.sin(2 * np.pi * np.arange(n) * 1e-3 / 4.0)
-    exact = create('physical', sample_time=1e-3, tau_ip=0.2)
-    sub = create('physical', sample_time=1e-3, tau_ip=0.2, integrator='substep', substep=1e-5)
-    moved = float(np.ptp(exact.simulate(op[: n // 10])))
-    te = best_time(lambda: exact.simulate(op), 2) / n
-    ts = best_time(lambda: sub.simulate(op[: n // 10]), 2) / (n // 10)
-    gap = float(np.max(np.abs(exact.simulate(op[: n // 10]) - sub.simulate(op[: n // 10]))))
-    return te, ts, gap, moved
-
-
 def main():
     """Run the benchmarks and write the report."""
     models = bench_models()
-    te, ts, gap, moved = bench_physical()
+    physical = bench_physical(best_time)
     ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
     loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
     batch = bench_batch(loops) if loops.is_dir() else None
@@ -124,22 +112,8 @@ def main():
         '',
         'Target of issue 6: >= 3e8 samples/s per model on one core.',
         '',
-        '## Physical valve at a 1 ms loop step',
-        '',
-        '| integrator | µs per sample |',
-        '|---|---|',
-        f'| exact (event-driven matrix exponentials) | {te * 1e6:.2f} |',
-        f'| 100 semi-implicit substeps of 10 µs (baseline, numba) | {ts * 1e6:.2f} |',
-        '',
-        f'Ratio {ts / te:.1f}x. Input: sine 50 ± 40 %, period 4 s, I/P lag 0.2 s; over the',
-        f'compared 2 s the stem travels {moved:.1f} % and the two integrators differ by at',
-        f'most {gap:.2g} % of travel. The substep integrator is compiled by numba (it',
-        'carries the Stribeck, dwell and asymmetric frictions, 10 000 substeps per sample',
-        "in --explain's test cases); the exact one is plain Python and numpy, so the ratio",
-        'below 1 says the compiled fixed-step loop is the faster at this step; the exact',
-        'integrator stays the reference for event times (no discretisation error).',
-        '',
     ]
+    lines += physical_markdown(physical)
     lines += identify_markdown(ident)
     if batch:
         lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')

@@ -19,6 +19,7 @@ import numpy as np
 # Kano's step, the breakaway rule and the clamp are identify's compiled ones.
 from stiction_ros.analysis.sse_kernels import _breakaway, _clip, _kano_step, njit
 from stiction_ros.models.characteristics import apply_characteristic
+from stiction_ros.models.physical import Physical
 
 
 _characteristic = njit(cache=True)(apply_characteristic)
@@ -122,3 +123,6 @@ def warm_up():
                   False, 0, 50.0, False)
     he_run(u, y, np.array([50.0, 50.0, 0.0]), 1.0, 0.5)
     stenman_run(u, y, np.array([50.0]), 1.0)
+    # The physical valve's two integrators.
+    Physical(sample_time=0.01).simulate(u)
+    Physical(sample_time=0.01, integrator='substep', substep=1e-3).simulate(u)

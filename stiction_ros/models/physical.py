@@ -36,7 +36,9 @@ zero-order hold on the commanded pressure), finds velocity events on a sub-grid
 of exact propagators (spacing Ts/2**q, at most a tenth of the mechanical time
 scale and of ``tau_ip``) and refines their time by bisection with finer exact
 propagators, down to 1e-10 s; the breakaway instant of a stuck stem is solved
-in closed form, since the pressure is monotone within a sample.
+in closed form, since the pressure is monotone within a sample.  The compiled
+form that ``simulate`` runs is ``physical_exact.py`` (0.03 µs per 1 ms sample);
+``_run_exact`` below is its pure-Python reference.
 ``'substep'`` takes semi-implicit steps of length ``substep`` (viscous friction
 implicit, ``physical_substep.py``); it is the reference for ``'exact'`` and the
 only integrator for the frictions of docs EFFECTS.md that the exact
@@ -52,7 +54,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from stiction_ros.models.base import ModelError, ValveModel
-
+from stiction_ros.models.physical_exact import run_exact
 from stiction_ros.models.physical_layout import (
     _A, _ASYM, _DFS, _DP, _DT, _EP, _F0, _FC, _FOH, _FS, _FV, _GAMMA, _K, _M, _NCONST, _NSUB,
     _PMIN, _STRIB, _TAU, _TS, _VS, _VSTICK, _XMAX, S_DIR, S_P, S_STUCK, S_UPREV, S_X, S_Y,
@@ -106,7 +108,7 @@ def _event(w, d, signwait, c):
 
 def _run_exact(u, y, state, c, phis, hs, q, jmax):
     """
-    Advance ``state`` over inputs ``u`` with exact propagators; write positions into ``y``.
+    Advance ``state`` over inputs ``u`` with exact propagators (the pure-Python reference).
 
     ``phis[j]`` propagates ``w = [x, v, p, p_cmd, -F0 - d*Fc]`` sliding over
     ``hs[j] = Ts / 2**j``; level ``q`` is the event-detection sub-grid and
@@ -411,6 +413,13 @@ class Physical(ValveModel):
         return state
 
     def _run(self, u, y, state):
+        if self._use_exact:
+            run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
+        else:
+            run_substep(u, y, state, self._c)
+
+    def _run_reference(self, u, y, state):
+        # The exact integrator's pure-Python form; the substep one has only its compiled form.
         if self._use_exact:
             _run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
         else:
