@@ -11,8 +11,10 @@ The search is a coarse-to-fine grid on multiples of ``resolution``:
    best coarse point is often not next to the global optimum;
 2. around every kept candidate, a finer grid spanning the coarse cell, and
    so on down to ``resolution`` (0.01 % by default);
-3. every candidate is scored exactly, but abandoned as soon as its running
-   error sum passes the worst of the kept ones (``sse_kernels``).
+3. a candidate is abandoned as soon as its running error sum passes the
+   ``keep``-th best found so far on its grid (``sse_kernels.grid_sse_best``),
+   so only the kept ones are scored exactly; the grid is visited in a spread
+   order, so that bound is tight after a few points.
 
 The uncertainty interval of each parameter is the projection of the joint
 95 % region: the grid pairs whose likelihood-ratio statistic
@@ -115,6 +117,33 @@ class Problem:
         return sse_kernels.grid_sse(KERNELS[self.model], self.op, self.mv, self.starts,
                                     self.stops, s, j, self.f, float(limit))
 
+    def points_best(self, s_pts, j_pts, keep, known=(), limit=math.inf):
+        """
+        Score pairs in the given order: exact for the ``keep`` best, bounds elsewhere.
+
+        ``known``: exact sums already found elsewhere, which tighten the bound
+        from the first pair on (``sse_kernels.points_sse_best``).
+        """
+        s = np.ascontiguousarray(s_pts, dtype=np.float64)
+        j = np.ascontiguousarray(j_pts, dtype=np.float64)
+        best = np.full(keep, float(limit))
+        known = np.sort(np.asarray(known, dtype=np.float64))[:keep]
+        best[:known.size] = np.minimum(known, best[:known.size])
+        best.sort()
+        self.evaluations += s.size
+        return sse_kernels.points_sse_best(KERNELS[self.model], self.op, self.mv, self.starts,
+                                           self.stops, s, j, self.f, best)
+
+    def grid_best(self, s_values, j_values, keep):
+        """Return grid SSEs exact for the ``keep`` best pairs (bounds elsewhere)."""
+        ns, nj = len(s_values), len(j_values)
+        order = sse_kernels.spread_order(ns * nj)
+        s_values = np.asarray(s_values, dtype=np.float64)
+        j_values = np.asarray(j_values, dtype=np.float64)
+        scores = np.empty(ns * nj)
+        scores[order] = self.points_best(s_values[order // nj], j_values[order % nj], keep)
+        return scores.reshape(ns, nj)
+
     def mse(self, S, J):
         """Return the exact MSE of eq. 2.8 at (S, J)."""
         return float(self.grid([S], [J])[0, 0]) / self.n
@@ -126,6 +155,10 @@ def _axis(lo, hi, step, res):
     a = max(0, int(math.floor(lo / res)))
     b = max(a, int(math.ceil(hi / res)))
     return np.arange(a, b + 1, k) * res
+
+
+def _key(item, res):
+    return (round(item[1] / res), round(item[2] / res))
 
 
 def _keep_best(scores, s_values, j_values, keep):
@@ -152,25 +185,30 @@ def search(problem, s_max, j_max, resolution=0.01, coarse_points=96, keep=12, pr
     step = res * max(1, round(step / res))
     s_axis = _axis(0.0, s_max, step, res)
     j_axis = _axis(0.0, j_max, step, res)
-    scores = problem.grid(s_axis, j_axis)
+    scores = problem.grid_best(s_axis, j_axis, keep)
     best = _keep_best(scores, s_axis, j_axis, keep)
     level = 0
     while step > res:
         level += 1
         fine = res * max(1, round(step / 5 / res))
-        found = {}
-        limit = best[-1][0] if len(best) >= keep else math.inf
+        # Every kept candidate's neighbourhood at the finer step, each pair once, the
+        # best candidate's first: scored against the kept sums, the bound is tight at once.
+        seen = {_key(item, res) for item in best}
+        pts = {}
         for _, s0, j0 in best:
-            s_ax = _axis(s0 - step, s0 + step, fine, res)
-            j_ax = _axis(j0 - step, j0 + step, fine, res)
-            sc = problem.grid(s_ax, j_ax, limit)
-            for sse, s, j in _keep_best(sc, s_ax, j_ax, keep):
-                key = (round(s / res), round(j / res))
-                if sse <= limit and key not in found:
-                    found[key] = (sse, s, j)
-        for item in best:
-            found.setdefault((round(item[1] / res), round(item[2] / res)), item)
-        best = sorted(found.values(), key=lambda x: (x[0], x[1] + x[2]))[:keep]
+            for s in _axis(s0 - step, s0 + step, fine, res):
+                for j in _axis(j0 - step, j0 + step, fine, res):
+                    key = (round(s / res), round(j / res))
+                    if key not in seen and key not in pts:
+                        pts[key] = (s, j)
+        s_pts = np.array([p[0] for p in pts.values()])
+        j_pts = np.array([p[1] for p in pts.values()])
+        # The last level needs only the best pair, so only it bounds the others.
+        k = 1 if fine <= res else keep
+        sc = problem.points_best(s_pts, j_pts, k, [item[0] for item in best])
+        new = [(float(e), float(s), float(j)) for e, s, j in zip(sc, s_pts, j_pts)]
+        # The keep best of old and new are exact: every abandoned pair is worse.
+        best = sorted(best + new, key=lambda x: (x[0], x[1] + x[2]))[:keep]
         step = fine
         if progress is not None:
             progress(level, problem.evaluations)

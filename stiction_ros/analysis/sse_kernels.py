@@ -138,6 +138,51 @@ def grid_sse(kernel_id, u, y, starts, stops, s_values, j_values, f, limit):
     return out
 
 
+def spread_order(n):
+    """
+    Return a permutation of ``range(n)`` that visits a grid evenly from the start.
+
+    A stride near ``n`` times the golden ratio, coprime with ``n``: the first
+    points scored are spread over the whole grid, so the running bound of
+    :func:`points_sse_best` is tight after a few of them.
+    """
+    if n <= 2:
+        return np.arange(n)
+    stride = int(n * 0.6180339887498949)
+    while np.gcd(stride, n) != 1:
+        stride += 1
+    return (np.arange(n, dtype=np.int64) * stride) % n
+
+
+@njit(cache=True)
+def points_sse_best(kernel_id, u, y, starts, stops, s_pts, j_pts, f, best):
+    """
+    Score (S, J) pairs in order; exact for the best ones, only bounded from below elsewhere.
+
+    ``best`` holds the ``keep`` best sums known so far, ascending (padded with
+    the limit), and is updated in place.  Each pair is abandoned as soon as
+    its sum passes the ``keep``-th of them, the bound the final ``keep`` best
+    all stay under: they are scored exactly and the rest cost a fraction of
+    the record each.
+    """
+    keep = best.shape[0]
+    out = np.empty(s_pts.shape[0])
+    for idx in range(s_pts.shape[0]):
+        bound = best[keep - 1]
+        if kernel_id == 0:
+            e = kano_sse(u, y, starts, stops, s_pts[idx], j_pts[idx], f, bound)
+        else:
+            e = choudhury_sse(u, y, starts, stops, s_pts[idx], j_pts[idx], f, bound)
+        out[idx] = e
+        if e < bound:
+            m = keep - 1
+            while m > 0 and best[m - 1] > e:
+                best[m] = best[m - 1]
+                m -= 1
+            best[m] = e
+    return out
+
+
 @njit(cache=True)
 def kano_output(u, y0, S, J, a):
     """Return Kano's output for input ``u``, at rest at ``y0`` before the first sample."""
