@@ -16,6 +16,7 @@ import math
 import numpy as np
 from scipy import signal
 
+from stiction_ros.analysis.sse_kernels import njit
 from stiction_ros.models.base import check_finite
 
 
@@ -35,6 +36,36 @@ def _poly(name, coeffs):
     if nz.size == 0:
         raise PlantError(f'plant.{name} is all zeros')
     return a[nz[0]:]
+
+
+@njit(cache=True)
+def plant_output(c, x, d, held, pv0):
+    """Return PV before noise and disturbances, ``pv0 + c x + d held``."""
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += c[i] * x[i]
+    return pv0 + acc + d * held
+
+
+@njit(cache=True)
+def plant_advance_into(phi, x, g0, now, g1, older, fractional, out):
+    """Write the state one sample on, ``phi x + g0 now (+ g1 older)``, into ``out``."""
+    n = x.shape[0]
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += phi[i, j] * x[j]
+        out[i] = acc + g0[i] * now
+        if fractional:
+            out[i] += g1[i] * older
+
+
+@njit(cache=True)
+def plant_advance(phi, x, g0, now, g1, older, fractional):
+    """Return the state one sample on (see :func:`plant_advance_into`)."""
+    out = np.empty(x.shape[0])
+    plant_advance_into(phi, x, g0, now, g1, older, fractional, out)
+    return out
 
 
 class TransferFunctionPlant:
@@ -90,8 +121,11 @@ class TransferFunctionPlant:
             phi_rest, g_rest = _zoh(a, b, c, d, ts - theta)
             _, g_theta = _zoh(a, b, c, d, theta)
             g0, g1 = g_rest, phi_rest @ g_theta
-        self._phi, self._g0, self._g1 = phi, g0[:, 0], g1[:, 0]
-        self._c, self._d = c[0], float(d[0, 0])
+        self._phi = np.ascontiguousarray(phi, dtype=np.float64)
+        self._g0 = np.ascontiguousarray(g0[:, 0], dtype=np.float64)
+        self._g1 = np.ascontiguousarray(g1[:, 0], dtype=np.float64)
+        self._c = np.ascontiguousarray(c[0], dtype=np.float64)
+        self._d = float(d[0, 0])
         self._m = m
         self._fractional = theta > 0.0
         self.dc_gain = (math.inf if self.integrating
@@ -119,7 +153,7 @@ class TransferFunctionPlant:
             # No dead time: a biproper plant feeds through the input that is
             # being held up to this instant, i.e. the previous sample's MV.
             held = self._last
-        y = self.pv0 + float(self._c @ self._x) + self._d * held
+        y = plant_output(self._c, self._x, self._d, held, self.pv0)
         for t, size in self.disturbance_steps:
             if self.time >= t - 1e-9 * self.sample_time:
                 y += size
@@ -132,10 +166,9 @@ class TransferFunctionPlant:
         u = check_finite('plant input (MV)', mv) - self.mv0
         m = self._m
         now = u if m == 0 else self._delayed(m)
-        x = self._phi @ self._x + self._g0 * now
-        if self._fractional:
-            x += self._g1 * self._delayed(m + 1)
-        self._x = x
+        # The compiled loop's own sums, so that both loops agree to the last bit.
+        self._x = plant_advance(self._phi, self._x, self._g0, now, self._g1,
+                                self._delayed(m + 1), self._fractional)
         self._hist.insert(0, u)
         self._hist.pop()
         self._last = u

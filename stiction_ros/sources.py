@@ -20,7 +20,15 @@ class SourceError(ValueError):
     """A source description is invalid; the message names the key and the fix."""
 
 
-class Constant:
+class Source:
+    """Base of the sources: ``sample`` evaluates a whole time array at once."""
+
+    def sample(self, times):
+        """Return the values at the increasing ``times``, as calls one by one would."""
+        return np.array([self(t) for t in times], dtype=np.float64)
+
+
+class Constant(Source):
     """A fixed value."""
 
     def __init__(self, value=0.0):
@@ -29,8 +37,12 @@ class Constant:
     def __call__(self, t):
         return self.value
 
+    def sample(self, times):
+        """Return the value at every time."""
+        return np.full(len(times), self.value)
 
-class Steps:
+
+class Steps(Source):
     """Piecewise constant: ``steps = [[t0, v0], [t1, v1], ...]``; v0 before t0 too."""
 
     def __init__(self, steps):
@@ -47,8 +59,13 @@ class Steps:
         i = int(np.searchsorted(self.times, t + 1e-12, side='right')) - 1
         return float(self.values[max(i, 0)])
 
+    def sample(self, times):
+        """Return the held values at every time."""
+        i = np.searchsorted(self.times, np.asarray(times) + 1e-12, side='right') - 1
+        return self.values[np.maximum(i, 0)]
 
-class Sine:
+
+class Sine(Source):
     """``offset + amplitude sin(2 pi t / period + phase)``."""
 
     def __init__(self, offset=50.0, amplitude=10.0, period=100.0, phase=0.0):
@@ -59,6 +76,11 @@ class Sine:
 
     def __call__(self, t):
         return self.offset + self.amplitude * math.sin(2 * math.pi * t / self.period + self.phase)
+
+    def sample(self, times):
+        """Return the wave at every time (the same expression, element-wise)."""
+        t = np.asarray(times, dtype=np.float64)
+        return self.offset + self.amplitude * np.sin(2 * math.pi * t / self.period + self.phase)
 
 
 def triangle_wave(phase):
@@ -74,8 +96,14 @@ class Triangle(Sine):
         return self.offset + self.amplitude * float(
             triangle_wave(2 * math.pi * t / self.period + self.phase))
 
+    def sample(self, times):
+        """Return the wave at every time (the same expression, element-wise)."""
+        t = np.asarray(times, dtype=np.float64)
+        return self.offset + self.amplitude * triangle_wave(2 * math.pi * t / self.period
+                                                            + self.phase)
 
-class RandomWalk:
+
+class RandomWalk(Source):
     """A bounded Gaussian random walk, one increment of ``std`` per call; seeded."""
 
     def __init__(self, offset=50.0, std=0.5, low=0.0, high=100.0, seed=0):

@@ -181,6 +181,15 @@ class ValveModel:
         """Advance over the array ``u``, writing ``y`` and updating ``state`` in place."""
         raise NotImplementedError
 
+    def loop_args(self):
+        """
+        Return this valve's arguments for the compiled offline loop, or None.
+
+        ``(kind, float params, array, propagators, steps, q, jmax)``, built by
+        ``loop_kinds.loop_args``; None runs the loop sample by sample in Python.
+        """
+        return None
+
     def _run_reference(self, u, y, state):
         # Models with a compiled _run override this with their pure-Python kernel.
         self._run(u, y, state)

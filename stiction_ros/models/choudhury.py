@@ -22,6 +22,7 @@ from stiction_ros.models.characteristics import (
     apply_characteristic, characteristic_code, CHARACTERISTICS, invert_characteristic,
     ma_to_percent, percent_to_ma, UNITS)
 from stiction_ros.models.compiled import choudhury_run
+from stiction_ros.models.loop_kinds import CHOUDHURY, loop_args
 
 # state layout: output, stem position, filtered input x (k-1), sign of the
 # previous slope, stick point x_ss, stuck flag, last direction of motion
@@ -70,6 +71,12 @@ class Choudhury(ValveModel):
         p = self._params
         choudhury_run(u, y, st, p['S'], p['J'], p['lam'], self._ma_in, self._char,
                       p['rangeability'], self._ma_out)
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        p = self._params
+        return loop_args(CHOUDHURY, (p['S'], p['J'], p['lam'], float(self._ma_in), self._char,
+                                     p['rangeability'], float(self._ma_out)))
 
     def _run_reference(self, u, y, st):
         p = self._params

@@ -12,6 +12,7 @@ import math
 
 from stiction_ros.models.base import ValveModel
 from stiction_ros.models.compiled import he_run
+from stiction_ros.models.loop_kinds import HE, loop_args
 
 _Y, _UPREV, _UR = range(3)
 
@@ -31,6 +32,10 @@ class He(ValveModel):
 
     def _run(self, u, y, st):
         he_run(u, y, st, self._params['S'], self._params['J'])
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        return loop_args(HE, (self._params['S'], self._params['J']))
 
     def _run_reference(self, u, y, st):
         he_kernel(u, y, st, self._params['S'], self._params['J'])

@@ -12,6 +12,7 @@ from stiction_ros.models.base import ValveModel
 from stiction_ros.models.breakaway import breakaway
 from stiction_ros.models.compiled import kano_run
 from stiction_ros.models.lags import first_order_pole
+from stiction_ros.models.loop_kinds import KANO, loop_args
 
 # state layout: position, u(k-1), u(k-2), u_s, resting flag, direction,
 # air-chamber output.  Direction 0 means "at rest with no friction force
@@ -40,6 +41,10 @@ class Kano(ValveModel):
 
     def _run(self, u, y, st):
         kano_run(u, y, st, self._params['S'], self._params['J'], self._a)
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        return loop_args(KANO, (self._params['S'], self._params['J'], self._a))
 
     def _run_reference(self, u, y, st):
         kano_kernel(u, y, st, self._params['S'], self._params['J'], self._a)

@@ -13,6 +13,7 @@ import numpy as np
 
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.loop_kinds import KANO_EFFECTS, loop_args
 
 EFFECTS = ('none', 'asymmetric_friction', 'dwell_time_breakaway', 'actuator_lag',
            'measurement_lag', 'position_dependent_friction', 'friction_drift',
@@ -70,6 +71,10 @@ class KanoEffects(ValveModel):
         uc = min(max(u0, 0.0), 100.0)
         y = uc if y0 is None else y0
         return [y, uc, uc, uc, 1.0, 0.0, y, u0, 0.0, y, 0.0]
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        return loop_args(KANO_EFFECTS, (self._params['S'], self._params['J']), self._p)
 
     def _run(self, u, y, st):
         kk.kano_effects_run(np.ascontiguousarray(u), y, st, self._params['S'],

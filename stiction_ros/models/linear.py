@@ -1,6 +1,7 @@
 """The ideal valve: position equals input, within travel."""
 
 from stiction_ros.models.base import ValveModel
+from stiction_ros.models.loop_kinds import LINEAR, loop_args
 
 
 class Linear(ValveModel):
@@ -11,6 +12,10 @@ class Linear(ValveModel):
 
     def _initial_state(self, u0, y0):
         return [min(max(u0, 0.0), 100.0)]
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        return loop_args(LINEAR)
 
     def _run(self, u, y, st):
         for k in range(len(u)):

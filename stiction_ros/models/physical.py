@@ -54,6 +54,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from stiction_ros.models.base import ModelError, ValveModel
+from stiction_ros.models.loop_kinds import loop_args, PHYSICAL_EXACT, PHYSICAL_SUBSTEP
 from stiction_ros.models.physical_exact import run_exact
 from stiction_ros.models.physical_layout import (
     _A, _ASYM, _DFS, _DP, _DT, _EP, _F0, _FC, _FOH, _FS, _FV, _GAMMA, _K, _M, _NCONST, _NSUB,
@@ -417,6 +418,13 @@ class Physical(ValveModel):
             run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
         else:
             run_substep(u, y, state, self._c)
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        if self._use_exact:
+            return loop_args(PHYSICAL_EXACT, (), self._c, self._phis, self._hs, self._q,
+                             self._jmax)
+        return loop_args(PHYSICAL_SUBSTEP, (), self._c)
 
     def _run_reference(self, u, y, state):
         # The exact integrator's pure-Python form; the substep one has only its compiled form.

@@ -9,6 +9,7 @@ chapter prints ``u(k-1)`` in the first branch; a stuck valve holds its previous
 
 from stiction_ros.models.base import ValveModel
 from stiction_ros.models.compiled import stenman_run
+from stiction_ros.models.loop_kinds import loop_args, STENMAN
 
 
 class Stenman(ValveModel):
@@ -24,6 +25,10 @@ class Stenman(ValveModel):
 
     def _run(self, u, y, st):
         stenman_run(u, y, st, self._params['S'])
+
+    def loop_args(self):
+        """Return the compiled loop's arguments for this valve."""
+        return loop_args(STENMAN, (self._params['S'],))
 
     def _run_reference(self, u, y, st):
         stenman_kernel(u, y, st, self._params['S'])
