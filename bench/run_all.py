@@ -14,8 +14,11 @@ import sys
 import tempfile
 import time
 
+from bench.bag_bench import bench_bag, markdown as bag_markdown
 from bench.batch_bench import bench_batch, markdown as batch_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
+from bench.live_bench import bench_live, markdown as live_markdown
+from bench.loop_bench import bench_loop, markdown as loop_markdown
 from bench.physical_bench import bench_physical, markdown as physical_markdown
 import numpy as np
 
@@ -86,7 +89,12 @@ def main():
     """Run the benchmarks and write the report."""
     models = bench_models()
     physical = bench_physical(best_time)
+    loop = bench_loop(best_time)
+    bag = bench_bag(best_time)
+    # STICTION_BENCH_LIVE_SECONDS shortens the 10-minute live loop for a quick look.
+    live = bench_live(float(os.environ.get('STICTION_BENCH_LIVE_SECONDS', 600)))
     ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
+    ident.append(bench_identify(best_time, 'kano', 1_000_000))
     loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
     batch = bench_batch(loops) if loops.is_dir() else None
     lines = [
@@ -115,6 +123,9 @@ def main():
     ]
     lines += physical_markdown(physical)
     lines += identify_markdown(ident)
+    lines += loop_markdown(loop)
+    lines += bag_markdown(bag)
+    lines += live_markdown(live)
     if batch:
         lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')
     out = ROOT / 'docs' / 'BENCHMARKS.md'
