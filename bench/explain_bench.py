@@ -60,8 +60,9 @@ def run_case(case, holdout=0.3, bootstrap=3):
         out = Path(tmp) / 'report.json'
         t0 = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()):
+            # One thread per case: the cases themselves run side by side.
             code = analyze([str(csv), '--explain', '--quiet', '--holdout', str(holdout),
-                            '--bootstrap', str(bootstrap), '--json', str(out)])
+                            '--bootstrap', str(bootstrap), '--json', str(out), '--jobs', '1'])
         wall = time.perf_counter() - t0
         if code != 0:
             return {**case, 'found': 'error', 'exit': code}

@@ -16,6 +16,7 @@ import time
 
 from bench.bag_bench import bench_bag, markdown as bag_markdown
 from bench.batch_bench import bench_batch, markdown as batch_markdown
+from bench.explain_speed import bench_explain_speed, markdown as explain_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
 from bench.live_bench import bench_live, markdown as live_markdown
 from bench.loop_bench import bench_loop, markdown as loop_markdown
@@ -95,6 +96,7 @@ def main():
     live = bench_live(float(os.environ.get('STICTION_BENCH_LIVE_SECONDS', 600)))
     ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
     ident.append(bench_identify(best_time, 'kano', 1_000_000))
+    explain = bench_explain_speed()
     loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
     batch = bench_batch(loops) if loops.is_dir() else None
     lines = [
@@ -123,6 +125,7 @@ def main():
     ]
     lines += physical_markdown(physical)
     lines += identify_markdown(ident)
+    lines += explain_markdown(explain)
     lines += loop_markdown(loop)
     lines += bag_markdown(bag)
     lines += live_markdown(live)

@@ -121,6 +121,18 @@ def test_explain_names_a_concealed_dwell_effect_and_improves_the_held_out_fit(dw
     assert 'dwell' in m['explanation'] and 0.0 < m['confidence'] <= 1.0
 
 
+def test_fits_side_by_side_give_the_report_of_fits_one_after_another(dwell_case):
+    """Threads change when each candidate is fitted, never what comes out."""
+    d, _ = dwell_case
+    n = 3000
+    one, _ = explain(d['t'][:n], d['op'][:n], d['mv'][:n], [(0, n)], 1.0, reps=1, jobs=1)
+    many, _ = explain(d['t'][:n], d['op'][:n], d['mv'][:n], [(0, n)], 1.0, reps=1, jobs=3)
+    for report in (one, many):
+        report.pop('explain_seconds', None)
+    assert json.dumps(one, sort_keys=True) == json.dumps(many, sort_keys=True)
+    assert len(one['candidates']) == len(EFFECTS)
+
+
 def test_explain_cli_report_keeps_the_contract(tmp_path, dwell_case):
     d, _ = dwell_case
     csv = tmp_path / 'loop.csv'

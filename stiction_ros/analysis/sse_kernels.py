@@ -61,7 +61,7 @@ def _kano_step(uraw, a, S, J, fd, uf, u1, u2, us, resting, d, yk):
     return uf, uk, u1, us, resting, d, yk
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kano_sse(u, y, starts, stops, S, J, a, limit):
     """Return the SSE of Kano's model (air-chamber pole ``a``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
@@ -81,7 +81,7 @@ def kano_sse(u, y, starts, stops, S, J, a, limit):
     return sse
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def choudhury_sse(u, y, starts, stops, S, J, lam, limit):
     """Return the SSE of Choudhury's model (EWMA weight ``lam``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
@@ -124,7 +124,7 @@ def choudhury_sse(u, y, starts, stops, S, J, lam, limit):
     return sse
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def grid_sse(kernel_id, u, y, starts, stops, s_values, j_values, f, limit):
     """Return the SSE of every (S, J) pair on a grid, each abandoned past ``limit``."""
     out = np.empty((s_values.shape[0], j_values.shape[0]))
@@ -154,7 +154,7 @@ def spread_order(n):
     return (np.arange(n, dtype=np.int64) * stride) % n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def points_sse_best(kernel_id, u, y, starts, stops, s_pts, j_pts, f, best):
     """
     Score (S, J) pairs in order; exact for the best ones, only bounded from below elsewhere.

@@ -86,7 +86,8 @@ def parser():
     p.add_argument('--quiet', action='store_true', help='no progress on stderr')
     many = p.add_argument_group('many recordings (INPUT a folder or a quoted glob)')
     many.add_argument('--jobs', type=int, default=None,
-                      help='worker processes (default: every core this process may use)')
+                      help='worker processes; for one recording, threads of --explain '
+                      '(default: every core this process may use)')
     many.add_argument('--scheduler', metavar='ADDRESS',
                       help='run on this Dask cluster (tcp://host:8786) instead of local processes')
     many.add_argument('--out-dir', metavar='DIR', help='write a JSON report per recording here')
@@ -95,8 +96,9 @@ def parser():
 
 def _forwarded(args):
     # The options of one recording's analysis, for the batch workers.
+    # Each worker is one process already: its --explain runs on one thread.
     argv = ['--model', args.model, '--loop-type', args.loop_type,
-            '--holdout', repr(args.holdout), '--bootstrap', str(args.bootstrap)]
+            '--holdout', repr(args.holdout), '--bootstrap', str(args.bootstrap), '--jobs', '1']
     for flag, value in (('--S', args.S), ('--J', args.J), ('--namespace', args.namespace)):
         if value is not None:
             argv += [flag, str(value)]
@@ -186,9 +188,12 @@ def run_explain(analysis, args, say):
                          'between the model and the measured MV')
     if args.bootstrap < 0:
         raise ValueError(f'--bootstrap must be 0 or more, got {args.bootstrap}')
+    from stiction_ros.cli.batch import default_jobs
+    jobs = args.jobs if getattr(args, 'jobs', None) is not None else default_jobs()
     sections, arrays = explain(rec.t, rec.signals['op'], rec.signals['mv'],
                                rec.segments(min_samples=2), rec.sample_time,
-                               holdout=args.holdout, reps=args.bootstrap, progress=say)
+                               holdout=args.holdout, reps=args.bootstrap, progress=say,
+                               jobs=max(1, jobs))
     analysis.report.update(sections)
     analysis.explain_arrays = arrays
 

@@ -16,6 +16,7 @@ when its lag-1 autocorrelation exceeds every bootstrap replicate's by more
 than ``ACF_MARGIN``; otherwise the answer is ``none``.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import math
 import time
 
@@ -58,8 +59,8 @@ def _acf1(x):
     return float(np.dot(x[1:], x[:-1]) / d) if d > 0 else 0.0
 
 
-def fit_all(op, mv, fit_segments, sample_time, progress=None, label=''):
-    """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
+def prepare(op, mv, fit_segments, sample_time):
+    """Return (plain Fit, problem, context, plain SSE) on the fitted segments."""
     base = identify(op, mv, 'kano', segments=fit_segments, sample_time=sample_time,
                     resolution=RESOLUTION, interval=False)
     starts = [a for a, _ in fit_segments]
@@ -68,12 +69,42 @@ def fit_all(op, mv, fit_segments, sample_time, progress=None, label=''):
     used = np.concatenate([np.arange(a, b) for a, b in fit_segments])
     ctx = Context(sample_time, int(max(stops)), float(np.mean(mv[used])))
     plain_sse = problem.sse(base.S, base.J, kk.plain_params())
-    fits = []
-    for i, effect in enumerate(EFFECTS):
+    return base, problem, ctx, plain_sse
+
+
+def fit_many(prepared, jobs=1, progress=None, labels=None):
+    """
+    Fit every candidate on every prepared record; return one list of fits per record.
+
+    The fits are independent and their kernels release the GIL, so ``jobs``
+    threads run them side by side; the results do not depend on ``jobs``.
+    """
+    tasks = [(i, effect) for i in range(len(prepared)) for effect in EFFECTS]
+    done = [0]
+
+    def one(task):
+        i, effect = task
+        base, problem, ctx, plain_sse = prepared[i]
+        fit = fit_effect(problem, effect, ctx, base.S, base.J, plain_sse)
+        done[0] += 1
         if progress is not None:
-            progress(f'{label}fitting {effect.eid} ({i + 1}/{len(EFFECTS)})')
-        fits.append(fit_effect(problem, effect, ctx, base.S, base.J, plain_sse))
-    return base, problem, ctx, plain_sse, fits
+            label = labels[i] if labels else ''
+            progress(f'{label}fitted {effect.eid} ({done[0]}/{len(tasks)})')
+        return fit
+
+    if jobs > 1 and len(tasks) > 1:
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            fits = list(pool.map(one, tasks))
+    else:
+        fits = [one(task) for task in tasks]
+    k = len(EFFECTS)
+    return [fits[i * k:(i + 1) * k] for i in range(len(prepared))]
+
+
+def fit_all(op, mv, fit_segments, sample_time, progress=None, label='', jobs=1):
+    """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
+    prepared = prepare(op, mv, fit_segments, sample_time)
+    return (*prepared, fit_many([prepared], jobs, progress, [label])[0])
 
 
 def lr(n, plain_sse, sse):
@@ -81,23 +112,27 @@ def lr(n, plain_sse, sse):
     return n * math.log(plain_sse / sse) if sse > 0 and plain_sse > 0 else 0.0
 
 
-def bootstrap(op, mv, fit_segments, sample_time, base, plain_sse, n, reps, seed,
-              progress=None):
-    """Return (largest LR per effect, lag-1 autocorrelations) on effect-free replicates."""
+def replicates(op, mv, fit_segments, base, plain_sse, n, reps, seed):
+    """Return ``reps`` effect-free records: the plain model on the recorded OP, plus noise."""
     rng = np.random.default_rng(seed)
     sigma = math.sqrt(plain_sse / n)
-    worst = {e.eid: 0.0 for e in EFFECTS}
-    acfs = []
-    for r in range(reps):
+    out = []
+    for _ in range(reps):
         # A real valve's S and J are not on the fit's grid, and the breakaway flips
         # that costs are part of what noise alone produces: replicates get the same.
         S = max(base.S + rng.uniform(-0.5, 0.5) * RESOLUTION, 0.0)
         J = min(max(base.J + rng.uniform(-0.5, 0.5) * RESOLUTION, 0.0), S)
         # Each replicate starts where the plain model starts: at the measured position.
         clean, _ = model_output(op, mv, fit_segments, S, J, kk.plain_params())
-        y = clean + sigma * rng.standard_normal(len(op))
-        b_base, b_problem, _, b_plain, b_fits = fit_all(
-            op, y, fit_segments, sample_time, progress, label=f'bootstrap {r + 1}/{reps}: ')
+        out.append(clean + sigma * rng.standard_normal(len(op)))
+    return out
+
+
+def calibrate(op, fit_segments, replicate_fits):
+    """Return (largest LR per effect, lag-1 autocorrelations) over the replicates' fits."""
+    worst = {e.eid: 0.0 for e in EFFECTS}
+    acfs = []
+    for y, (b_base, b_problem, _, b_plain), b_fits in replicate_fits:
         for f in b_fits:
             worst[f.effect] = max(worst[f.effect], lr(b_problem.n, b_plain, f.sse))
         res, _ = model_output(op, y, fit_segments, b_base.S, b_base.J, kk.plain_params())
@@ -111,11 +146,12 @@ def _mse(a, b, mask):
 
 
 def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, seed=0,
-            progress=None):
+            progress=None, jobs=1):
     """
     Return the ``--explain`` report sections (a dict) and the arrays behind the figures.
 
-    ``segments``: the valid stretches (start, stop) of the record.
+    ``segments``: the valid stretches (start, stop) of the record; ``jobs``: threads
+    for the candidate fits (the result does not depend on it).
     """
     t0 = time.perf_counter()
     op = np.asarray(op, dtype=np.float64)
@@ -129,11 +165,18 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         raise ValueError('no valid samples before the held-out part to fit on')
     say = progress or (lambda msg: None)
     say('fitting the plain model')
-    base, problem, ctx, plain_sse, fits = fit_all(op, mv, fit_segments, sample_time, say)
+    prepared = prepare(op, mv, fit_segments, sample_time)
+    base, problem, ctx, plain_sse = prepared
     n_used = problem.n
+    # The bootstrap's effect-free replicates, refitted from scratch like the record;
+    # then every candidate on every one of them, side by side on ``jobs`` threads.
+    ys = replicates(op, mv, fit_segments, base, plain_sse, n_used, reps, seed)
+    records = [prepared] + [prepare(op, y, fit_segments, sample_time) for y in ys]
+    labels = [''] + [f'bootstrap {r + 1}/{reps}: ' for r in range(reps)]
+    all_fits = fit_many(records, jobs, say, labels)
+    fits = all_fits[0]
     stats = {f.effect: lr(n_used, plain_sse, f.sse) for f in fits}
-    worst, acfs = bootstrap(op, mv, fit_segments, sample_time, base, plain_sse, n_used, reps,
-                            seed, say) if reps > 0 else ({e.eid: 0.0 for e in EFFECTS}, [])
+    worst, acfs = calibrate(op, fit_segments, list(zip(ys, records[1:], all_fits[1:])))
     thresholds = {e.eid: max(CHI2_999[len(e.names)], MARGIN * worst[e.eid]) for e in EFFECTS}
 
     valid = np.zeros(n, dtype=bool)

@@ -143,7 +143,7 @@ def _at_rest(u0, k, y0):
     return st
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kano_effects_sse(u, y, starts, stops, y0s, S, J, p, limit):
     """
     Return the SSE against ``y`` over the segments, or a number > ``limit`` once past it.
@@ -160,7 +160,7 @@ def kano_effects_sse(u, y, starts, stops, y0s, S, J, p, limit):
     return sse
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kano_effects_grid(u, y, starts, stops, y0s, s_values, j_values, p, limit, keep):
     """
     Return the SSE of every (S, J) on a grid with the effect parameters ``p``.
@@ -185,7 +185,7 @@ def kano_effects_grid(u, y, starts, stops, y0s, s_values, j_values, p, limit, ke
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def kano_effects_output(u, starts, stops, y0s, S, J, p, out, resting_out):
     """Write the model's position into ``out`` (and 1.0 where at rest into ``resting_out``)."""
     none = np.empty(0)

@@ -1,0 +1,73 @@
+"""
+``--explain`` on one 8 641-sample record: candidate fits side by side against one after another.
+
+The two slowest cases of ``make bench-explain`` (a measurement lag and an
+actuator lag hidden in a Kano valve, noise 1): the whole ``--explain`` step
+(plain fit, every candidate on the record and on the 3 bootstrap replicates,
+the choice) with the fits on every core's thread, and the same with
+``jobs=1``, each candidate fitted after the other, in the same run.  The two
+reports must be equal.
+"""
+
+import json
+import time
+
+from stiction_ros.analysis.mismatch.explain import explain
+from stiction_ros.cli.batch import default_jobs
+from stiction_ros.concealed_cases import concealed_case
+
+CASES = (('measurement_lag', 401), ('actuator_lag', 301))
+
+
+def _run(record, jobs):
+    n = len(record['t'])
+    t0 = time.perf_counter()
+    sections, _ = explain(record['t'], record['op'], record['mv'], [(0, n)], 1.0, jobs=jobs)
+    return time.perf_counter() - t0, sections
+
+
+def bench_explain_speed():
+    """Return one row per case: seconds with every core and with one, the effect named."""
+    jobs = default_jobs()
+    rows = []
+    for effect, seed in CASES:
+        record, _ = concealed_case(effect, seed)
+        _run({k: v[:600] for k, v in record.items()}, jobs)  # compile outside the timing
+        t_many, many = _run(record, jobs)
+        t_one, one = _run(record, 1)
+        same = (json.dumps(_stable(many), sort_keys=True)
+                == json.dumps(_stable(one), sort_keys=True))
+        rows.append({'effect': effect, 'seed': seed, 'samples': len(record['t']), 'jobs': jobs,
+                     'seconds': t_many, 'sequential': t_one, 'same': same,
+                     'found': many['mismatch']['effect']})
+    return rows
+
+
+def _stable(sections):
+    # Everything but the timings.
+    return {k: v for k, v in sections.items() if not k.endswith('seconds')}
+
+
+def markdown(rows):
+    """Return the report lines."""
+    lines = [
+        '## `--explain` on one record',
+        '',
+        '| hidden effect | seed | samples | found | candidate fits side by side (s) |'
+        ' one after another (s, baseline) | ratio | same report |',
+        '|---|---|---|---|---|---|---|---|',
+    ]
+    for r in rows:
+        lines.append(
+            f'| `{r["effect"]}` | {r["seed"]} | {r["samples"]} | `{r["found"]}` |'
+            f' {r["seconds"]:.1f} ({r["jobs"]} threads) | {r["sequential"]:.1f} |'
+            f' {r["sequential"] / r["seconds"]:.2f}x | {"yes" if r["same"] else "NO"} |')
+    lines += [
+        '',
+        'The whole `--explain` step: plain fit, the 8 candidates on the record and on each of'
+        ' the 3 bootstrap replicates (32 fits), the choice. The fits are independent and their',
+        'numba kernels release the GIL, so `--jobs` threads run them side by side; the two'
+        ' slowest cases of `make bench-explain`. Target of issue 6: <= 10 s.',
+        '',
+    ]
+    return lines
