@@ -15,12 +15,14 @@ import time
 import numpy as np
 import pytest
 from ros_helpers import start_node, stop, wait_for
+from std_msgs.msg import Float64
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import run_loop
 from stiction_ros.live_summary import summarise
 from stiction_ros.loop_config import load_loop, resolve_loop
 from stiction_ros.measure_sj import measure_sj
 from stiction_ros.models import Kano
+from stiction_ros.nodes.sampled import DATA_QOS
 from stiction_ros.paths import config_file
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -77,6 +79,33 @@ def test_open_loop_valve_chain_reproduces_the_model_on_the_recorded_op(tmp_path)
     tol = sj['max_step'] + 0.01
     assert abs(fit['S'] - 4.0) <= tol and abs(fit['J'] - 1.5) <= tol, (fit, tol)
     assert fit['samples'] >= 395
+
+
+def test_on_wall_time_a_node_acts_once_per_sample_never_before_its_phase(probe, tmp_path):
+    """
+    The valve's MV leaves once per sample, at or after 3/4 of it on the system clock.
+
+    The send stamps (DDS source time, the system clock) are the evidence: two in one
+    sample, or one before the phase instant, would break the scan order.
+    """
+    ts = 0.04
+    stamps = []
+    probe.node.create_subscription(
+        Float64, '/wall/mv', lambda msg, info: stamps.append(info['source_timestamp']),
+        DATA_QOS, raw=True)
+    valve = start_node('valve', {'sample_time': ts, 'model': 'kano', 'S': 1.0, 'J': 0.5},
+                       '/wall', str(tmp_path))
+    try:
+        wait_for(lambda: len(stamps) > 60, what='60 samples of MV')
+    finally:
+        assert stop(valve) == 0
+    ts_ns = int(ts * 1e9)
+    k = np.array(stamps) // ts_ns
+    into = (np.array(stamps) - k * ts_ns) / ts_ns
+    assert np.all(np.diff(k) >= 1), 'two messages in one sample'
+    assert np.all(into >= 0.75), into.min()
+    # Nearly every sample has its message (a busy machine may delay a tick past one).
+    assert np.mean(np.diff(k) == 1) > 0.9
 
 
 def test_a_node_started_late_or_restarted_and_the_loop_resumes(probe, tmp_path):

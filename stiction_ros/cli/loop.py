@@ -93,12 +93,13 @@ class Processes:
 
 
 def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=None,
-             progress=None):
+             progress=None, realtime_priority=0):
     """
     Run the loop; return the bag path (or None) after every node has stopped.
 
     ``rtf`` > 0 runs on a ``/clock`` at that real-time factor (else wall
-    time).  Raises :class:`LoopError` when a node fails.
+    time, where ``realtime_priority`` > 0 runs the loop nodes under
+    SCHED_FIFO).  Raises :class:`LoopError` when a node fails.
     """
     ts = float(cfg['sample_time'])
     duration = float(duration if duration is not None else cfg['duration'])
@@ -120,8 +121,9 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     try:
         if record:
             procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
+        rt_arg = ['-p', f'realtime_priority:={int(realtime_priority)}'] if not sim else []
         for name in LOOP_NODES:
-            procs.start(name, node_command(name, namespace, params, sim_arg), env)
+            procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg), env)
         end = None if sim else time.monotonic() + duration + 0.75 * ts
         if sim:
             procs.start('sim_clock', node_command('sim_clock', namespace, params), env)
@@ -156,6 +158,9 @@ def main(argv=None):
     ap.add_argument('--duration', type=float, help='seconds of loop time (default: from the file)')
     ap.add_argument('--rtf', type=float, default=0.0,
                     help='run on a /clock at this real-time factor (default: wall time)')
+    ap.add_argument('--realtime-priority', type=int, default=0, metavar='P',
+                    help='on wall time, run the loop nodes under SCHED_FIFO at priority P '
+                    '(1-98; needs CAP_SYS_NICE)')
     ap.add_argument('--record', metavar='DIR', help='record sp, op, mv, pv to this bag directory')
     ap.add_argument('--logs', metavar='DIR', help='directory for the node logs')
     ap.add_argument('--json', metavar='FILE', help='write the summary as JSON')
@@ -175,7 +180,10 @@ def main(argv=None):
         mode = f'rtf {args.rtf:g}' if args.rtf else 'wall time'
         print(f'loop: {cfg.get("name", "loop")} {cfg.get("case") or ""} on {mode}; '
               f'node logs in {logs or "a temporary directory"}', file=sys.stderr)
-        bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs)
+        if not 0 <= args.realtime_priority <= 98:
+            raise ConfigError('--realtime-priority must be 0 (off) to 98')
+        bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs,
+                       realtime_priority=args.realtime_priority)
         print(f'loop: ran in {time.monotonic() - t0:.1f} s', file=sys.stderr)
         if bag is not None:
             summary = summarise(read_bag(bag), cfg)

@@ -6,6 +6,7 @@ SIGINT and SIGTERM end the spin through rclpy's signal handlers; the node's
 shut down.  A node that cannot start prints one line saying why and exits 2.
 """
 
+import gc
 import sys
 
 import rclpy
@@ -30,6 +31,10 @@ def run(factory, args=None, prog='node'):
         rclpy.try_shutdown()
         return 2
     code = 0
+    # Everything built so far lives for the whole run: move it out of the collector's
+    # way, so a collection of the few short-lived objects of a sample stays short.
+    gc.collect()
+    gc.freeze()
     try:
         finished = getattr(node, 'finished', None)
         if finished is None:
