@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo reproduce accuracy test lint bench bench-explain colcon clean
+.PHONY: venv demo reproduce accuracy test lint bench bench-explain bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -53,6 +53,9 @@ bench: venv
 # writes docs/EXPLAIN_BENCHMARK.md and docs/explain_bench.json.
 bench-explain: venv
 	$(PY) -m bench.explain_bench
+
+# Every benchmark: speed (bench) and --explain's accuracy (bench-explain), about 25 min.
+bench-all: bench bench-explain
 
 colcon: venv
 	$(VENV)/bin/colcon build --base-paths . --build-base /tmp/stiction_ros_colcon/build \
