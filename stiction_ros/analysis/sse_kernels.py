@@ -175,12 +175,18 @@ def points_sse_best(kernel_id, u, y, starts, stops, s_pts, j_pts, f, best):
             e = choudhury_sse(u, y, starts, stops, s_pts[idx], j_pts[idx], f, bound)
         out[idx] = e
         if e < bound:
-            m = keep - 1
-            while m > 0 and best[m - 1] > e:
-                best[m] = best[m - 1]
-                m -= 1
-            best[m] = e
+            insert_best(best, e)
     return out
+
+
+@njit(cache=True, inline='always')
+def insert_best(best, e):
+    """Put ``e`` into the ascending ``best`` in its place, dropping the last."""
+    m = best.shape[0] - 1
+    while m > 0 and best[m - 1] > e:
+        best[m] = best[m - 1]
+        m -= 1
+    best[m] = e
 
 
 @njit(cache=True)

@@ -25,7 +25,7 @@ nested.  The parameter vector ``p`` is indexed by the constants below:
 
 import numpy as np
 
-from stiction_ros.analysis.sse_kernels import njit
+from stiction_ros.analysis.sse_kernels import insert_best, njit
 
 (A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
  STRIBECK, CREEP) = range(12)
@@ -177,11 +177,7 @@ def kano_effects_grid(u, y, starts, stops, y0s, s_values, j_values, p, limit, ke
                                  p, min(limit, best[keep - 1]))
             out[i, j] = e
             if e < best[keep - 1]:
-                m = keep - 1
-                while m > 0 and best[m - 1] > e:
-                    best[m] = best[m - 1]
-                    m -= 1
-                best[m] = e
+                insert_best(best, e)
     return out
 
 
