@@ -25,6 +25,7 @@ acts for the next one, and that sample has no message.  ``realtime_priority``
 runs the process under SCHED_FIFO.
 """
 
+from collections import deque
 import math
 import os
 import sys
@@ -71,6 +72,9 @@ class SampledNode(Node):
         self._ts_ns = int(round(self.sample_time * 1e9))
         self.last_k = None
         self.samples = 0
+        self.skipped = 0
+        # The last 100 000 samples' lateness, for the shutdown summary (bounded memory).
+        self._late = deque(maxlen=100_000)
         self.rejected = 0
 
     def start(self):
@@ -132,14 +136,25 @@ class SampledNode(Node):
             self.last_k = k - 1
         if slot < self._slot or k == self.last_k:
             return
+        if self.last_k is not None and k > self.last_k + 1:
+            self.skipped += k - self.last_k - 1
         self.last_k = k
         self.samples += 1
         self.on_sample(k, k * self.sample_time)
+        # How late this sample's action finished, for the summary at shutdown.
+        due = k * self._ts_ns + self._slot * self._ts_ns // SLOTS
+        self._late.append(self.get_clock().now().nanoseconds - due)
 
     def close(self):
-        """Say how many samples the node acted on (run.py calls this at shutdown)."""
-        print(f'{self.get_name()}: acted on {self.samples} samples, last {self.last_k}; '
-              f'{self.rejected} inputs rejected', file=sys.stderr)
+        """Say how many samples the node acted on, and how late (run.py calls this at shutdown)."""
+        late = sorted(self._late)
+        stats = ''
+        if late:
+            pick = [late[min(len(late) - 1, int(q * len(late)))] / 1e6 for q in (0.5, 0.99)]
+            stats = (f'; done {pick[0]:.2f} ms after its phase instant (p50), {pick[1]:.2f} ms'
+                     f' (p99), {late[-1] / 1e6:.2f} ms (max)')
+        print(f'{self.get_name()}: acted on {self.samples} samples, skipped {self.skipped}'
+              f'{stats}; {self.rejected} inputs rejected', file=sys.stderr)
 
     def accept(self, topic, value):
         """Return True for a finite input; count and warn (throttled) otherwise."""
