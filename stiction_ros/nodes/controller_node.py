@@ -75,6 +75,8 @@ class ControllerNode(SampledNode):
         self.op_pub = self.create_publisher(Float64, 'op', DATA_QOS)
         self.sp_pub = self.create_publisher(Float64, 'sp', DATA_QOS)
         self.create_subscription(Float64, 'pv', self._on_pv, DATA_QOS)
+        if v['mode'] == 'closed_loop':
+            self.watch('pv')  # an open-loop controller needs no PV
         self.start()
         self.get_logger().info(f'{v["mode"]} Kc={v["Kc"]} Ti={v["Ti"]} at {self.sample_time} s')
 

@@ -58,6 +58,7 @@ class PlantNode(SampledNode):
         self._k = None
         self.pub = self.create_publisher(Float64, 'pv', DATA_QOS)
         self.create_subscription(Float64, 'mv', self._on_mv, DATA_QOS)
+        self.watch('mv')
         self.start()
         self.get_logger().info(
             f'{list(v["num"])}/{list(v["den"])} e^-{v["delay"]}s at {self.sample_time} s')

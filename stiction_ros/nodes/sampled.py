@@ -31,9 +31,12 @@ import os
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stiction_ros.nodes.input_guard import InputGuard
 from stiction_ros.nodes.params import check_choices, declare, Param
 
 SLOTS = 4
@@ -64,6 +67,10 @@ class SampledNode(Node):
                   'needs CAP_SYS_NICE; without it the node warns and keeps the normal '
                   'scheduler). 0: the normal scheduler. Fixed for the run.',
                   0, 98, read_only=True),
+            Param('input_limit', 1e6, 'Input values beyond +-this (or not finite) are '
+                  'rejected and the last good value held.', 1.0, 1e300),
+            Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
+                  'reports it stale (ERROR).', 1e-3, 1e6),
         ]
         self.param_specs = common + list(params)
         self.values = declare(self, self.param_specs)
@@ -76,6 +83,10 @@ class SampledNode(Node):
         # The last 100 000 samples' lateness, for the shutdown summary (bounded memory).
         self._late = deque(maxlen=100_000)
         self.rejected = 0
+        self.input_guards = {}
+        self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_timer(1.0, self._publish_diagnostics,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def start(self):
         """Register the parameter callbacks and start the sample timer."""
@@ -157,14 +168,45 @@ class SampledNode(Node):
               f'{stats}; {self.rejected} inputs rejected', file=sys.stderr)
 
     def accept(self, topic, value):
-        """Return True for a finite input; count and warn (throttled) otherwise."""
-        if math.isfinite(value):
+        """Return True for a usable input; count, warn (throttled) and report otherwise."""
+        guard = self._guard(topic)
+        if guard.check(value, self._steady()):
             return True
         self.rejected += 1
         self.get_logger().warning(
-            f'ignored non-finite {topic} ({value}); holding the last good value '
-            f'({self.rejected} rejected so far)', throttle_duration_sec=5.0)
+            f'ignored {topic} = {value} (not finite or beyond +-{guard.limit:g}); holding '
+            f'the last good value ({self.rejected} rejected so far)', throttle_duration_sec=5.0)
         return False
+
+    def watch(self, topic):
+        """Report ``topic`` on /diagnostics from now on, stale until its first valid value."""
+        self._guard(topic)
+
+    def _guard(self, topic):
+        if topic not in self.input_guards:
+            self.input_guards[topic] = InputGuard(topic, self.values['input_limit'],
+                                                  self.values['stale_after'])
+        return self.input_guards[topic]
+
+    @staticmethod
+    def _steady():
+        return time.monotonic()
+
+    def _publish_diagnostics(self):
+        now = self._steady()
+        statuses = []
+        for topic, guard in self.input_guards.items():
+            guard.limit = self.values['input_limit']
+            guard.stale_after = self.values['stale_after']
+            level, message, values = guard.status(now)
+            statuses.append(DiagnosticStatus(
+                level=bytes([level]), name=f'{self.get_fully_qualified_name()}: {topic}',
+                message=message, hardware_id='stiction_ros',
+                values=[KeyValue(key=k, value=v) for k, v in values.items()]))
+        if statuses:
+            msg = DiagnosticArray(status=statuses)
+            msg.header.stamp = self.get_clock().now().to_msg()
+            self._diag.publish(msg)
 
     def on_sample(self, k, t):
         """Act for sample ``k`` taken at time ``t`` (s)."""

@@ -61,6 +61,7 @@ class ValveNode(SampledNode):
         self.op = None
         self.pub = self.create_publisher(Float64, 'mv', DATA_QOS)
         self.create_subscription(Float64, 'op', self._on_op, DATA_QOS)
+        self.watch('op')
         self.start()
         self.get_logger().info(f'{self.model!r} at {self.sample_time} s')
 

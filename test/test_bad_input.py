@@ -1,0 +1,78 @@
+"""
+Bad messages at the nodes: rejected, the last good value held, counted and reported.
+
+The rules (``InputGuard``) alone, then a real valve node fed NaN, infinities and
+an absurd value over DDS, watched on its ``mv`` and on ``/diagnostics``.
+"""
+
+import math
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import numpy as np
+import pytest
+from ros_helpers import start_node, stop, wait_for
+from stiction_ros.nodes.input_guard import ERROR, InputGuard, OK, WARN
+
+pytestmark = pytest.mark.ros
+
+
+def test_guard_rejects_what_is_not_a_measurement_and_says_when_input_goes_stale():
+    g = InputGuard('op', limit=1e3, stale_after=2.0)
+    assert g.status(0.0)[0] == WARN  # nothing yet
+    assert g.check(42.0, 1.0)
+    for bad in (math.nan, math.inf, -math.inf, 1e300, -1001.0):
+        assert not g.check(bad, 1.5)
+    level, message, values = g.status(1.6)
+    assert level == WARN and 'rejected 5' in message and values['last_good'] == '42.0'
+    assert g.status(1.7)[0] == OK  # reported once; nothing new since
+    level, message, _ = g.status(3.1)
+    assert level == ERROR and 'stale' in message and '42' in message
+    assert g.check(-1000.0, 3.2) and g.status(3.3)[0] == OK
+
+
+def test_a_valve_node_holds_its_position_through_nan_inf_and_absurd_op(probe, tmp_path):
+    ns = '/bad'
+    probe.listen(f'{ns}/mv')
+    diags = []
+    probe.node.create_subscription(DiagnosticArray, '/diagnostics',
+                                   lambda m: diags.extend(m.status), 10)
+    valve = start_node('valve', {'sample_time': 0.05, 'model': 'kano', 'S': 1.0, 'J': 0.5,
+                                 'stale_after': 1.0, 'input_limit': 1000.0}, ns, str(tmp_path))
+    try:
+        wait_for(lambda: len(probe.values(f'{ns}/mv')) > 3, what='valve output')
+
+        sent = []
+
+        def moved():
+            # Kano's valve rests at the first OP it sees: move it 50 -> 60 until it has
+            # matched and taken the step (an OP sent before discovery is lost).
+            sent.append(60.0 if len(sent) % 20 >= 10 else 50.0)
+            probe.publish(f'{ns}/op', sent[-1])
+            return abs(probe.values(f'{ns}/mv')[-1] - 59.75) < 1e-9 and sent[-1] == 60.0
+        wait_for(moved, what='the valve at the good OP')
+        for _ in range(5):
+            probe.publish(f'{ns}/op', 60.0)
+            time.sleep(0.02)
+        time.sleep(0.2)
+        n_good = len(probe.values(f'{ns}/mv'))
+        for bad in (math.nan, math.inf, -math.inf, 1e300, 5000.0):
+            probe.publish(f'{ns}/op', bad)
+            time.sleep(0.06)
+        wait_for(lambda: len(probe.values(f'{ns}/mv')) > n_good + 10, what='more samples')
+        after = np.array(probe.values(f'{ns}/mv')[n_good:])
+        # Held, not moved by any of them, and nothing non-finite propagated.
+        assert np.all(after == 59.75), after
+        wait_for(lambda: any(s.level == WARN.to_bytes(1, 'little') and 'rejected' in s.message
+                             for s in diags if s.name.endswith('valve: op')),
+                 what='a WARN diagnostic naming the rejected values')
+        # Then no OP at all: the input goes stale and says so.
+        wait_for(lambda: any(s.level == ERROR.to_bytes(1, 'little') and 'stale' in s.message
+                             for s in diags if s.name.endswith('valve: op')),
+                 timeout=10.0, what='an ERROR diagnostic for a stale op')
+        assert all(s.name == f'{ns}/valve: op' for s in diags if s.name.endswith('valve: op'))
+    finally:
+        assert stop(valve) == 0
+    log = (tmp_path / 'valve.log').read_text()
+    assert 'ignored op = nan' in log and 'holding the last good value' in log
+    assert '5 inputs rejected' in log
