@@ -126,3 +126,17 @@ def validate(cfg):
                              f'; choose one of {sorted(MODELS)}'))
     _check_keys(valve, set(MODELS[model].PARAMS) | {'model'}, 'valve')
     _check_keys(cfg.get('noise') or {}, NOISE, 'noise')
+    _build_each(cfg)
+
+
+def _build_each(cfg):
+    # Build the plant, controller and valve the loop would run, so that an unstable or
+    # improper plant, a bad tuning or impossible friction fails here, named, not mid-run.
+    from stiction_ros.closed_loop import build_controller, build_plant, build_valve
+    for section, build in (('plant', build_plant), ('controller', build_controller),
+                           ('valve', build_valve)):
+        try:
+            build(cfg)
+        except (ValueError, TypeError) as err:
+            text = str(err)
+            raise ConfigError(text if text.startswith(section) else f'{section}: {text}') from None

@@ -128,6 +128,13 @@ def test_compiled_loop_is_the_python_loop_sample_for_sample(config, overrides):
     ({'valve.model': 'kanno'}, "did you mean 'kano'"),
     ({'sample_time': 0}, 'sample_time: must be a positive'),
     ({'controller.mode': 'open_loop'}, 'controller.op: missing'),
+    # Caught when the file is loaded, not when the run reaches them:
+    ({'plant.den': [1.0, -1.0]}, r'plant.den has poles \[1.0\].*unstable'),
+    ({'plant.num': [1.0, 2.0, 3.0]}, 'plant is not proper.*add poles or remove zeros'),
+    ({'plant.delay': -1}, r'plant.delay = -1.0 is outside \[0.0'),
+    ({'valve': {'model': 'physical', 'Fs': 100.0, 'Fc': 700.0}},
+     'valve: physical: static friction Fs = 100.0 N is below Coulomb friction'),
+    ({'controller.op_min': 100.0}, r'controller.op_min \(100.0\) must be below op_max'),
 ])
 def test_config_errors_name_the_key_and_the_fix(overrides, match):
     with pytest.raises(ConfigError, match=match):
