@@ -56,7 +56,9 @@ class SimClockNode(Node):
                   read_only=True),
             Param('sync_timeout', 1.0, 'Wall seconds to wait for a sync topic before moving on.',
                   0.0, 60.0, read_only=True),
-            Param('sync_margin', 0.001, 'Wall seconds to wait after the last due sync message '
+            # 3 ms: with 1 ms a loaded 2-core machine let a consumer miss a message now
+            # and then (the Table 2.1 live test failed 2 of about 6 full runs).
+            Param('sync_margin', 0.003, 'Wall seconds to wait after the last due sync message '
                   'arrived, so that it reaches its other subscribers too.', 0.0, 10.0,
                   read_only=True),
             Param('settle', 1.0, 'Wall seconds to wait after the subscribers appear, so that '
