@@ -45,11 +45,12 @@ class InputGuard:
         age = now - self.last_good[0]
         values['last_good'] = repr(self.last_good[1])
         values['age_s'] = f'{age:.3f}'
+        # Rejections are reported in any case: an input can be both stale and bad.
+        bad = (f'rejected {fresh} {self.topic} value(s) since the last report (last '
+               f'{self.last_bad!r}: not finite or beyond +-{self.limit:g}); ' if fresh else '')
         if age > self.stale_after:
-            return (ERROR, f'{self.topic} stale: nothing valid for {age:.1f} s; holding '
+            return (ERROR, f'{self.topic} stale: nothing valid for {age:.1f} s; {bad}holding '
                     f'{self.last_good[1]:.6g}', values)
         if fresh:
-            return (WARN, f'rejected {fresh} {self.topic} value(s) since the last report '
-                    f'(last {self.last_bad!r}: not finite or beyond +-{self.limit:g}); '
-                    f'holding the last good value', values)
+            return WARN, f'{bad}holding the last good value', values
         return OK, f'{self.topic} valid', values
