@@ -22,9 +22,11 @@ from stiction_ros.controller import PID
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
-from stiction_ros.sources import Constant, make_source, SourceError
+from stiction_ros.sources import Constant, make_source, SourceError, SOURCES
 import yaml
 
+PROFILE_RULE = ('empty, a number, or a YAML mapping with type: one of ' + ', '.join(SOURCES)
+                + " and that type's keys; anything else is rejected with the reason")
 GAINS = ('Kc', 'Ti', 'Td', 'N', 'op_min', 'op_max', 'action')
 
 
@@ -60,10 +62,12 @@ class ControllerNode(SampledNode):
             Param('setpoint', 0.0, 'Constant set point; setting it overrides a profile.',
                   -1e12, 1e12),
             Param('setpoint_profile', '', 'Set-point profile as YAML, e.g. '
-                  '{type: steps, steps: [[0, 0], [10, 1]]}; empty: use setpoint.'),
+                  '{type: steps, steps: [[0, 0], [10, 1]]}; empty: use setpoint.',
+                  constraint=PROFILE_RULE),
             Param('op', 50.0, 'Open-loop OP, %; setting it overrides op_profile.', -1e6, 1e6),
             Param('op_profile', '', 'Open-loop OP profile as YAML, e.g. '
-                  '{type: sine, offset: 50, amplitude: 10, period: 200}; empty: use op.'),
+                  '{type: sine, offset: 50, amplitude: 10, period: 200}; empty: use op.',
+                  constraint=PROFILE_RULE),
         ])
         v = self.values
         self.check_startup()

@@ -27,6 +27,9 @@ class Param:
     choices: tuple = None
     read_only: bool = False
     step: float = 0.0
+    # What a free-form value must be (a string the node parses): shown by ``ros2 param
+    # describe`` as the descriptor's additional_constraints.
+    constraint: str = ''
 
 
 _TYPES = {
@@ -56,6 +59,8 @@ def descriptor(p):
         d.integer_range = [IntegerRange(from_value=int(p.low), to_value=int(p.high), step=1)]
     if p.choices:
         d.additional_constraints = 'one of: ' + ', '.join(str(c) for c in p.choices)
+    elif p.constraint:
+        d.additional_constraints = p.constraint
     return d
 
 

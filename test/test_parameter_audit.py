@@ -1,0 +1,108 @@
+"""
+Every parameter of every node, through the standard services as ``ros2 param`` uses them.
+
+One process per node kind; the test lists each node's parameters and checks
+what ``ros2 param describe`` would show (a range for every number, an
+allowed set or a stated rule for every settable string), then sets each
+settable number just outside its range, each settable string to something
+invalid and each inconsistent pair, and checks that every rejection carries
+a reason and changes nothing, also inside an atomic call with a valid value.
+"""
+
+import time
+
+import pytest
+from rcl_interfaces.msg import ParameterType as T
+from ros_helpers import start_node, stop
+
+pytestmark = pytest.mark.ros
+ROS_OWN = {'use_sim_time', 'start_type_description_service'}
+NUMBERS = {T.PARAMETER_DOUBLE, T.PARAMETER_INTEGER}
+# Settable strings parsed by the node: a value each must refuse.
+BAD_TEXT = {'setpoint_profile': '{type: sinus, period: 10}', 'op_profile': '[1, 2'}
+# Combinations that are each in range but inconsistent together.
+INCONSISTENT = {'controller': {'op_min': 80.0, 'op_max': 20.0},
+                'valve': {'Fc': 900.0, 'Fs': 800.0}}
+
+
+@pytest.fixture(scope='module')
+def nodes(probe, tmp_path_factory):
+    logs = tmp_path_factory.mktemp('audit')
+    ns = f'/audit{time.monotonic_ns() % 10**6}'
+    specs = {'valve': {'sample_time': 0.1}, 'plant': {'sample_time': 0.1},
+             'controller': {'sample_time': 0.1},
+             'recorder': {'output': str(logs / 'bag')},
+             'sim_clock': {'rtf': 1.0, 'stop_at': 1e6}}
+    procs = {name: start_node(name, params, namespace=ns, log_dir=str(logs))
+             for name, params in specs.items()}
+    clients = {name: probe.params(f'{ns}/{name}') for name in specs}
+    yield clients
+    for name, proc in procs.items():
+        assert stop(proc) == 0, (logs / f'{name}.log').read_text()
+
+
+def describe(probe, client):
+    names = probe.call(client.list_parameters([], 0)).result.names
+    res = probe.call(client.describe_parameters(list(names)))
+    return {d.name: d for d in res.descriptors if d.name not in ROS_OWN}
+
+
+def outside(d):
+    if d.type == T.PARAMETER_DOUBLE:
+        r = d.floating_point_range[0]
+        return r.to_value * 2 + 1 if r.to_value < 1e300 else r.from_value - abs(r.from_value) - 1
+    r = d.integer_range[0]
+    return r.to_value + 1 if r.to_value < 2**62 else r.from_value - 1
+
+
+@pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])
+def test_every_parameter_says_what_it_accepts(probe, nodes, name):
+    seen = describe(probe, nodes[name])
+    assert seen
+    for pname, d in seen.items():
+        assert d.description, (name, pname)
+        if d.type in NUMBERS:
+            assert d.floating_point_range or d.integer_range, (name, pname, 'no range')
+        elif d.type == T.PARAMETER_STRING and not d.read_only:
+            assert d.additional_constraints, (name, pname, 'no allowed set or rule')
+        else:
+            assert d.read_only or d.type == T.PARAMETER_BOOL, (name, pname)
+
+
+@pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])
+def test_invalid_values_are_rejected_with_a_reason_and_change_nothing(probe, nodes, name):
+    client = nodes[name]
+    seen = describe(probe, client)
+    tried = 0
+    for pname, d in seen.items():
+        before = probe.get_params(client, pname)
+        if d.read_only:
+            bad = before[0]
+        elif d.type in NUMBERS:
+            bad = outside(d)
+            bad = int(bad) if d.type == T.PARAMETER_INTEGER else float(bad)
+        elif d.type == T.PARAMETER_STRING:
+            bad = BAD_TEXT.get(pname, 'no-such-choice')
+        else:
+            continue
+        res = probe.set_params(client, **{pname: bad})[0]
+        assert not res.successful and res.reason, (name, pname, bad)
+        assert probe.get_params(client, pname) == before, (name, pname)
+        tried += 1
+    assert tried >= len(seen) - 2
+
+
+@pytest.mark.parametrize('name', ['valve', 'controller'])
+def test_inconsistent_combinations_are_refused_atomically(probe, nodes, name):
+    client = nodes[name]
+    pair = INCONSISTENT[name]
+    before = probe.get_params(client, *pair)
+    res = probe.set_params(client, atomically=True, **pair)[0]
+    assert not res.successful and res.reason
+    assert probe.get_params(client, *pair) == before
+    # A valid value in the same atomic call is not applied either.
+    settable = 'J' if name == 'valve' else 'Kc'
+    keep = probe.get_params(client, settable)
+    res = probe.set_params(client, atomically=True, **{settable: 1.5}, **pair)[0]
+    assert not res.successful
+    assert probe.get_params(client, settable, *pair) == keep + before
