@@ -26,7 +26,7 @@ MODULES = {'controller': 'controller_node', 'valve': 'valve_node', 'plant': 'pla
            'analyzer': 'analyzer_node'}
 
 
-def start_node(name, params=None, namespace='', log_dir=None, extra=()):
+def start_node(name, params=None, namespace='', log_dir=None, extra=(), preexec_fn=None):
     """Start a node executable as its own process; return the Popen."""
     cmd = [sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--ros-args']
     for key, value in (params or {}).items():
@@ -35,7 +35,8 @@ def start_node(name, params=None, namespace='', log_dir=None, extra=()):
         cmd += ['-r', f'__ns:={namespace}']
     cmd += list(extra)
     out = open(os.path.join(log_dir, f'{name}.log'), 'ab') if log_dir else subprocess.DEVNULL
-    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ))
+    return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ),
+                            preexec_fn=preexec_fn)
 
 
 def _arg(value):

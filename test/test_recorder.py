@@ -8,6 +8,7 @@ Messages come from this test over real DDS; the bag is read back with
 
 import json
 from pathlib import Path
+import resource
 import signal
 import subprocess
 import sys
@@ -27,11 +28,11 @@ pytestmark = pytest.mark.ros
 N = 3000
 
 
-def record(probe, tmp_path, ns, flush_period=1.0):
+def record(probe, tmp_path, ns, flush_period=1.0, preexec_fn=None, **params):
     bag = tmp_path / 'bag'
     proc = start_node('recorder', {'output': str(bag), 'topics': ['op', 'mv', 'status'],
-                                   'flush_period': flush_period, 'chunk_size': 65536},
-                      namespace=ns, log_dir=str(tmp_path))
+                                   'flush_period': flush_period, 'chunk_size': 65536, **params},
+                      namespace=ns, log_dir=str(tmp_path), preexec_fn=preexec_fn)
     diag = probe.node.create_publisher(DiagnosticArray, f'{ns}/status', 10)
     pubs = [probe.publisher(f'{ns}/{t}') for t in ('op', 'mv')] + [diag]
     # matched with the recorder's readers, not just seen in the graph: a
@@ -101,6 +102,39 @@ def test_an_unwritable_output_is_an_error_at_start(tmp_path):
     assert proc.wait(60) == 2
     assert 'already exists and is not empty' in (tmp_path / 'recorder.log').read_text()
     assert (tmp_path / 'bag' / 'keep.txt').read_text() == 'not ours'
+
+
+def test_too_little_free_disk_space_is_an_error_at_start(tmp_path):
+    proc = start_node('recorder', {'output': str(tmp_path / 'bag'), 'min_free_mb': 1e9},
+                      log_dir=str(tmp_path))
+    assert proc.wait(60) == 2
+    assert 'MB free' in (tmp_path / 'recorder.log').read_text()
+    assert not (tmp_path / 'bag').exists()
+
+
+def _small_disk():
+    # The file-size limit makes write() fail with EFBIG, as a full disk fails with ENOSPC.
+    resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
+def test_a_disk_that_fills_mid_run_stops_the_recording_not_the_recorder(probe, tmp_path):
+    ns = '/full'
+    bag, proc, diag = record(probe, tmp_path, ns, flush_period=0.2, compression='none',
+                             preexec_fn=_small_disk)
+    burst(probe, ns, diag, 4000)
+    time.sleep(1.0)
+    assert proc.poll() is None, 'the recorder must keep running'
+    assert stop(proc) == 0
+    log = (tmp_path / 'recorder.log').read_text()
+    assert 'recording stopped after' in log and 'stiction-bag repair' in log
+    assert 'were not recorded' in log
+    assert 'Traceback' not in log
+    repair_bag(bag)
+    got = read_bag(bag)
+    n = got.topic('op').count
+    assert 100 < n < 4000
+    assert list(got.topic('op').values()) == [i * 0.5 for i in range(n)]
 
 
 def test_sigterm_finishes_the_file_too(probe, tmp_path):

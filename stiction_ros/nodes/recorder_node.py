@@ -21,12 +21,22 @@ sent before it.
 The open chunk goes to disk every ``flush_period`` wall seconds, so a
 SIGKILL loses at most that much; SIGINT/SIGTERM finish the file.
 
+Disk space: the recorder refuses to start with less than ``min_free_mb``
+free where the bag goes, and finishes the bag cleanly (summary, index,
+metadata.yaml) when free space falls below it during the run, then counts
+what it could not record.  A write that fails anyway (the disk filled
+faster, a quota, a file-size limit) stops the recording with one error
+naming the cause; the process keeps running and what was flushed before is
+recovered by ``stiction-bag repair``.
+
 Example::
 
     ros2 run stiction_ros recorder --ros-args -p output:=run1 -p topics:="['op', 'mv']"
 """
 
+from pathlib import Path
 import re
+import shutil
 import sys
 
 from rclpy.clock import Clock, ClockType
@@ -84,6 +94,9 @@ class RecorderNode(Node):
                   'most a SIGKILL can lose.', 0.01, 3600.0, read_only=True),
             Param('depth', 1000, 'Subscription queue depth (reliable): how far the recorder '
                   'may fall behind without losing messages.', 1, 1000000, read_only=True),
+            Param('min_free_mb', 64.0, 'Free disk space, MB, below which the recorder does not '
+                  'start, or finishes the bag cleanly during the run.', 0.0, 1e9,
+                  read_only=True),
         ]
         v = self.values = declare(self, self.specs)
         reason = check_choices(self.specs, v)
@@ -91,6 +104,10 @@ class RecorderNode(Node):
             raise StartupError(reason)
         if not v['output']:
             raise StartupError('recorder: set the bag directory with -p output:=DIR')
+        free = _free_mb(v['output'])
+        if free < v['min_free_mb']:
+            raise StartupError(f'recorder: only {free:.0f} MB free for {v["output"]} (min_free_mb '
+                               f'is {v["min_free_mb"]:g}); free some space or record elsewhere')
         try:
             self.writer = BagWriter(v['output'], compression=v['compression'],
                                     chunk_size=v['chunk_size'])
@@ -104,6 +121,8 @@ class RecorderNode(Node):
                 depth=1000, reliability=ReliabilityPolicy.RELIABLE))
         self.subs = {}
         self._unflushed = 0
+        self.stopped = None     # why recording stopped early, if it did
+        self.not_recorded = 0
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.05, self._discover, clock=wall)
         self.create_timer(v['flush_period'], self._flush, clock=wall)
@@ -155,12 +174,26 @@ class RecorderNode(Node):
         return self._clock_sim[i] if i >= 0 else self.get_clock().now().nanoseconds
 
     def _write(self, name, data, sent, received=None):
+        if self.stopped:
+            self.not_recorded += 1
+            return
         if self._sim:
             # Both stamps in sim time: the wall send stamp would be decades
             # after the log time, which validators flag and no reader can relate.
             received = sent = self._sim_time_at(sent)
-        self.writer.write(name, data, received, sent)
+        try:
+            self.writer.write(name, data, received, sent)
+        except OSError as err:
+            self._fail(err)
+            self.not_recorded += 1
+            return
         self._unflushed += 1
+
+    def _fail(self, err):
+        self.stopped = f'cannot write {self.writer.directory}: {err.strerror or err}'
+        self.get_logger().error(
+            f'{self.stopped}; recording stopped after {self.writer.message_count} messages. '
+            f'What reached the disk is recovered by: stiction-bag repair {self.writer.directory}')
 
     def _callback(self, name):
         def store(data, info):
@@ -187,19 +220,47 @@ class RecorderNode(Node):
         return on_message
 
     def _flush(self):
-        if self._unflushed:
-            self.writer.flush_chunk()
-            self._unflushed = 0
+        if self.stopped:
+            return
+        free = _free_mb(self.writer.directory)
+        try:
+            if free < self.values['min_free_mb']:
+                self.writer.close()
+                self.stopped = f'only {free:.0f} MB left on disk'
+                self.get_logger().error(
+                    f'{self.stopped} (min_free_mb {self.values["min_free_mb"]:g}): the bag is '
+                    f'finished and complete with {self.writer.message_count} messages; '
+                    'nothing more is recorded')
+            elif self._unflushed:
+                self.writer.flush_chunk()
+                self._unflushed = 0
+        except OSError as err:
+            self._fail(err)
 
     def close(self):
         """Finish the bag; called on shutdown (SIGINT/SIGTERM)."""
         for item in self._pending:
             self._write(*item)
         self._pending = []
-        self.writer.close()
+        if not self.stopped:    # after a failed write the file is left for repair as it is
+            try:
+                self.writer.close()
+            except OSError as err:
+                self._fail(err)
         counts = ', '.join(f'{n}: {t["count"]}' for n, t in self.writer.topics.items())
         print(f'recorder: wrote {self.writer.message_count} messages to '
               f'{self.writer.directory} ({counts})', file=sys.stderr)
+        if self.stopped:
+            print(f'recorder: stopped early ({self.stopped}); {self.not_recorded} messages '
+                  'received after that were not recorded', file=sys.stderr)
+
+
+def _free_mb(path):
+    # The nearest existing directory: the bag directory may not exist yet.
+    p = Path(path).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free / 2**20
 
 
 def _import_type(type_name):
