@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo reproduce accuracy test lint bench bench-explain bench-all colcon clean
+.PHONY: venv demo reproduce accuracy test fuzz lint bench bench-explain bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -42,6 +42,10 @@ accuracy: venv
 
 test: venv
 	$(PY) -m pytest -q test
+
+# The input fuzz suite with fresh random inputs, 1 500 per test (CI runs 120, always the same).
+fuzz: venv
+	FUZZ_EXAMPLES=1500 FUZZ_RANDOM=1 $(PY) -m pytest -q test/test_fuzz_inputs.py
 
 lint: venv
 	$(PY) -m pytest -q test/test_flake8.py test/test_pep257.py

@@ -24,3 +24,17 @@ def probe(request):
     yield p
     p.close()
     rclpy.try_shutdown()
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Say how many inputs the fuzz suite tried, and how each ended."""
+    import sys
+    fuzz = sys.modules.get('test_fuzz_inputs')
+    if fuzz is None or not fuzz.TRIED:
+        return
+    total = sum(fuzz.TRIED.values())
+    terminalreporter.write_line(f'fuzz: {total} inputs tried')
+    for kind, n in sorted(fuzz.TRIED.items()):
+        ends = ', '.join(f'{fuzz.OUTCOMES[f"{kind}: {how}"]} {how}s'
+                         for how in ('result', 'one-line error'))
+        terminalreporter.write_line(f'  {kind}: {n} ({ends})')

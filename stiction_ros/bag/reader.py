@@ -11,18 +11,22 @@ numpy, other types through ``mcap_ros2``.
 
 from dataclasses import dataclass, field
 from io import BytesIO
+import os
 from pathlib import Path
 import struct
+import zlib
 
 import lz4.frame
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.records import Channel, Chunk, ChunkIndex, Message, Metadata, Schema, Statistics
 import numpy as np
 from stiction_ros.bag.chunk_scan import gather_float64, OP_CHANNEL, OP_SCHEMA, scan_chunk
 import yaml
 import zstandard
 
+# The largest record or decompressed chunk believed: a bigger length field is corruption
+# (rosbag2 and this package write chunks of about 1 MiB), and trusting it would allocate it.
 RECORD_LIMIT = 256 * 2**20
 
 
@@ -53,6 +57,12 @@ class Topic:
         self._flush()
         if len(offsets):
             self._segments.append((buf, offsets, lengths, log_time, publish_time))
+
+    def adopt(self, other):
+        """Take the messages of ``other`` (found before this topic's channel) first."""
+        other._flush()
+        self._flush()
+        self._segments[:0] = other._segments
 
     def add_one(self, data, log_time, publish_time):
         """Append one message given as bytes (records outside chunks)."""
@@ -165,7 +175,7 @@ def mcap_files(path):
 
 
 def read_bag(path):
-    """Read every message of a bag; never raise on truncation, only on unreadable input."""
+    """Read every message of a bag; never raise on damage, only on unreadable input."""
     path = Path(path)
     state = _ReadState()
     complete = True
@@ -173,28 +183,28 @@ def read_bag(path):
         n_before = state.count()
         try:
             with open(file, 'rb') as f:
-                footer = False
-                for rec in _records(f):
-                    if isinstance(rec, Chunk):
-                        state.chunk(file, rec)
-                    elif isinstance(rec, Footer):
-                        footer = True
-                    else:
-                        state.record(file, rec)
-            if not footer:
-                raise EOFError('no footer')
+                frames = _Framing(f)
+                try:
+                    for op, body in frames.records():
+                        state.take(file, op, body)
+                except (EOFError, ValueError) as err:
+                    _rescue(file, f, frames.good_end, state, err)
+                    raise
         except OSError as err:
             raise BagReadError(f'{file}: cannot read: {err.strerror or err}') from None
-        except (McapError, EOFError, ValueError, KeyError, IndexError, struct.error) as err:
-            if isinstance(err, BagReadError):
-                raise
+        except (EOFError, ValueError) as err:
             n_file = state.count() - n_before
-            if n_file == 0 and not state.channels:
+            if n_file == 0 and not state.channels and not state.orphans:
                 raise BagReadError(f'{file}: not a readable MCAP file ({_why(err)})') from None
             complete = False
             state.warnings.append(
                 f'{file.name}: file ends early ({_why(err)}); read the {n_file} messages of '
                 'its complete chunks. `stiction-bag repair` fixes the index.')
+        stats = state.statistics.pop(file, None)
+        if stats is not None and stats != state.count() - n_before:
+            state.warnings.append(f'{file.name}: its statistics record counts {stats} '
+                                  f'messages, {state.count() - n_before} were read')
+    state.finish()
     meta = None
     if state.metadata:
         try:
@@ -205,34 +215,66 @@ def read_bag(path):
                metadata=meta)
 
 
+# What a damaged record can raise while it is parsed or decompressed.
+_DAMAGE = (McapError, EOFError, ValueError, KeyError, IndexError, struct.error,
+           OverflowError, zstandard.ZstdError, RuntimeError, MemoryError)
+
+
 class _ReadState:
     """Schemas, channels and topics gathered over the files of one bag."""
 
     def __init__(self):
         self.schemas, self.channels, self.topics, self.warnings = {}, {}, {}, []
         self.metadata = None
+        # Messages whose channel record was lost with a damaged chunk, by channel id:
+        # the summary repeats every channel, so they are bound when it comes.
+        self.orphans = {}
+        self.statistics = {}
 
     def count(self):
-        return sum(t.count for t in self.topics.values())
+        return (sum(t.count for t in self.topics.values())
+                + sum(t.count for t in self.orphans.values()))
+
+    def take(self, file, op, body):
+        """Parse one record found outside a chunk; a damaged one is skipped with a warning."""
+        try:
+            rec = _READERS[op](ReadDataStream(BytesIO(body)), len(body)) if op == 0x05 \
+                else _READERS[op](ReadDataStream(BytesIO(body)))
+            if isinstance(rec, Chunk):
+                self.chunk(file, rec)
+            elif isinstance(rec, Statistics):
+                self.statistics[file] = rec.message_count
+            else:
+                self.record(file, rec)
+        except _DAMAGE as err:
+            what = {0x06: 'a chunk', 0x05: 'a message'}.get(op, f'a record (opcode {op:#04x})')
+            self.warnings.append(f'{file.name}: {what} is damaged ({_why(err)}); skipped')
 
     def record(self, file, rec):
-        """Take one record found outside a chunk."""
+        """Take one parsed record: from outside a chunk, or a schema or channel in one."""
         if isinstance(rec, Message):
             self._topic(file, rec.channel_id).add_one(rec.data, rec.log_time, rec.publish_time)
         elif isinstance(rec, Schema):
-            self.schemas[rec.id] = rec
+            self.schemas.setdefault(rec.id, rec)
         elif isinstance(rec, Channel) and rec.id not in self.channels:
             self.channels[rec.id] = self.topics.setdefault(rec.topic, Topic(
                 name=rec.topic, type=getattr(self.schemas.get(rec.schema_id), 'name', ''),
                 schema=self.schemas.get(rec.schema_id),
                 qos=rec.metadata.get('offered_qos_profiles', ''),
                 type_hash=rec.metadata.get('topic_type_hash', '')))
+            orphan = self.orphans.pop(rec.id, None)
+            if orphan is not None:
+                self.channels[rec.id].adopt(orphan)
         elif isinstance(rec, Metadata) and rec.name == 'rosbag2':
             self.metadata = rec.metadata.get('serialized_metadata', self.metadata)
 
     def chunk(self, file, chunk):
         """Index a chunk's records in one pass; its messages stay in its buffer."""
-        buf = np.frombuffer(_decompress(file, chunk), dtype=np.uint8)
+        data = _decompress(file, chunk)
+        if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+            # None of a damaged chunk's bytes can be trusted, so it is left out whole.
+            raise ValueError('its CRC does not match')
+        buf = np.frombuffer(data, dtype=np.uint8)
         chan, log, pub, off, ln, others, end = scan_chunk(buf)
         if end != buf.size:
             raise EOFError(f'a record in the chunk at log time {chunk.message_start_time} '
@@ -250,53 +292,173 @@ class _ReadState:
     def _topic(self, file, channel_id):
         topic = self.channels.get(channel_id)
         if topic is None:
-            raise BagReadError(f'{file}: message on unknown channel {channel_id}')
+            topic = self.orphans.setdefault(channel_id, Topic(name=f'channel {channel_id}',
+                                                              type=''))
         return topic
+
+    def finish(self):
+        """Warn about messages whose channel never appeared."""
+        for cid, topic in sorted(self.orphans.items()):
+            self.warnings.append(f'{topic.count} messages on channel {cid}, which no channel '
+                                 'record defines (a damaged chunk held it); left out')
+        self.orphans = {}
 
 
 _MAGIC = b'\x89MCAP0\r\n'
-# Record readers by opcode; every other record (message indexes, the summary) is skipped:
-# the scan from the start needs none of them, and parsing an index costs per message.
-_READERS = {0x03: Schema.read, 0x04: Channel.read, 0x06: Chunk.read, 0x0C: Metadata.read,
-            0x02: Footer.read}
+# Record readers by opcode; every other record (message indexes, the rest of the summary)
+# is skipped: the scan from the start needs none of them, and parsing an index costs per
+# message.
+_READERS = {0x03: Schema.read, 0x04: Channel.read, 0x05: Message.read, 0x06: Chunk.read,
+            0x0B: Statistics.read, 0x0C: Metadata.read}
 
 
-def _records(f):
-    """Yield the records of an MCAP file from the start; raise EOFError where it ends early."""
-    magic = f.read(len(_MAGIC))
-    if magic != _MAGIC:
-        raise ValueError('no MCAP magic at the start' if magic else 'empty file')
-    while True:
-        head = f.read(9)
-        if len(head) < 9:
-            raise EOFError('no footer' if not head else 'file ends inside a record header')
-        op = head[0]
-        length = int.from_bytes(head[1:], 'little')
-        if length > RECORD_LIMIT:
-            raise ValueError(f'a record claims {length} bytes, over the {RECORD_LIMIT}-byte '
-                             'limit: the length field is corrupt')
-        if op != 0x05 and op not in _READERS:
-            f.seek(length, 1)
+class _Framing:
+    """The records of an MCAP file from the start, and where the last whole one ended."""
+
+    def __init__(self, f):
+        self.f = f
+        self.size = os.fstat(f.fileno()).st_size
+        self.good_end = 0
+
+    def records(self):
+        """
+        Yield ``(opcode, body)`` of the records the reader uses, up to the footer.
+
+        Only the framing is checked here: EOFError where the file ends early,
+        ValueError where it is not MCAP or a length field is impossible.
+        """
+        f = self.f
+        magic = f.read(len(_MAGIC))
+        if magic != _MAGIC:
+            raise ValueError('no MCAP magic at the start' if magic else 'empty file')
+        self.good_end = f.tell()
+        while True:
+            head = f.read(9)
+            if len(head) < 9:
+                raise EOFError('no footer' if not head else 'file ends inside a record header')
+            op = head[0]
+            length = int.from_bytes(head[1:], 'little')
+            _check_length(length, self.size - f.tell())
+            if op == 0x02:
+                return
+            if op not in _READERS:
+                f.seek(length, 1)
+            else:
+                yield op, f.read(length)
+            self.good_end = f.tell()
+
+
+def _check_length(length, left):
+    if length > RECORD_LIMIT:
+        raise ValueError(f'a record claims {length} bytes, over the {RECORD_LIMIT}-byte '
+                         'limit: the length field is corrupt')
+    if length > left:
+        # Checked before reading: read(n) allocates n bytes first.
+        raise EOFError('file ends inside a record')
+
+
+def _rescue(file, f, after, state, err):
+    """
+    Read the chunks after a break in the framing through the summary's chunk index.
+
+    A damaged length field makes the rest of the file unreadable from the
+    start, but a whole file ends with a footer that points at a summary
+    listing every chunk and channel.  Does nothing if there is none.
+    """
+    try:
+        summary = _summary(f)
+    except (EOFError, ValueError, struct.error, OverflowError, McapError):
+        return
+    if summary is None:
+        return
+    records, chunks = summary
+    for op, body in records:
+        state.take(file, op, body)
+    taken = 0
+    size = os.fstat(f.fileno()).st_size
+    for start, length in chunks:
+        if start < after:
             continue
+        try:
+            _check_length(length - 9, size - start - 9)
+        except (EOFError, ValueError):
+            continue
+        f.seek(start + 9)       # the index's length, not the (perhaps damaged) header's
+        state.take(file, 0x06, f.read(length - 9))
+        taken += 1
+    state.warnings.append(f'{file.name}: unreadable from byte {after} ({_why(err)}); read '
+                          f'{taken} chunks after it through the summary index')
+
+
+def _summary(f):
+    """Return the summary's (schema and channel records, chunk (offset, length) list), or None."""
+    size = os.fstat(f.fileno()).st_size
+    footer_at = size - len(_MAGIC) - 29
+    if footer_at < len(_MAGIC):
+        return None
+    f.seek(footer_at)
+    footer = f.read(29 + len(_MAGIC))
+    if footer[0] != 0x02 or footer[29:] != _MAGIC:
+        return None
+    start = int.from_bytes(footer[9:17], 'little')
+    if not len(_MAGIC) <= start < footer_at:
+        return None
+    f.seek(start)
+    records, chunks = [], []
+    while f.tell() < footer_at:
+        head = f.read(9)
+        length = int.from_bytes(head[1:], 'little')
+        _check_length(length, footer_at - f.tell())
         body = f.read(length)
-        if len(body) < length:
-            raise EOFError('file ends inside a record')
-        stream = ReadDataStream(BytesIO(body))
-        rec = Message.read(stream, length) if op == 0x05 else _READERS[op](stream)
-        yield rec
-        if op == 0x02:
-            return
+        if head[0] in (0x03, 0x04):
+            records.append((head[0], body))
+        elif head[0] == 0x08:
+            index = ChunkIndex.read(ReadDataStream(BytesIO(body)))
+            chunks.append((index.chunk_start_offset, index.chunk_length))
+    return records, sorted(chunks)
 
 
 def _decompress(file, chunk):
+    size = chunk.uncompressed_size
+    if size > RECORD_LIMIT:
+        raise ValueError(f'a chunk claims {size} bytes uncompressed, over the '
+                         f'{RECORD_LIMIT}-byte limit: the chunk header is corrupt')
     if chunk.compression == '':
         return chunk.data
+    # Output in pieces, never past the chunk's stated size: a damaged header could
+    # claim terabytes, and both libraries allocate the whole claimed size at once.
     if chunk.compression == 'zstd':
-        return zstandard.decompress(chunk.data, chunk.uncompressed_size)
+        declared = zstandard.frame_content_size(chunk.data)
+        if declared not in (-1, size):
+            raise ValueError(f'a zstd frame claims {declared} bytes, the chunk {size}')
+        reader = zstandard.ZstdDecompressor().stream_reader(chunk.data)
+        return _pieces(lambda n: reader.read(n), size)
     if chunk.compression == 'lz4':
-        return lz4.frame.decompress(chunk.data)
-    raise BagReadError(f'{file}: chunks compressed with {chunk.compression!r}, which this '
-                       'reader cannot decompress (zstd, lz4 or none)')
+        lz4d = lz4.frame.LZ4FrameDecompressor()
+        first = [chunk.data]
+
+        def more(n):
+            if lz4d.eof:
+                return b''
+            return lz4d.decompress(first.pop() if first else b'', max_length=n)
+        return _pieces(more, size)
+    raise ValueError(f'compressed with {chunk.compression!r}, which this reader cannot '
+                     'decompress (zstd, lz4 or none)')
+
+
+def _pieces(read, size, piece=1 << 20):
+    """Return exactly ``size`` bytes from ``read(n)`` calls, or raise ValueError."""
+    parts, got = [], 0
+    while got <= size:
+        part = read(min(piece, size + 1 - got))
+        if not part:
+            break
+        parts.append(part)
+        got += len(part)
+    if got != size:
+        raise ValueError(f'a chunk decompresses to {"more than " if got > size else ""}'
+                         f'{got} bytes, its header says {size}')
+    return b''.join(parts)
 
 
 def _why(err):

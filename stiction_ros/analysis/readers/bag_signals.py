@@ -46,7 +46,8 @@ def read_bag_record(path, namespace=None):
             why = f'is {topic.type or "of unknown type"}, not {FLOAT64}' if topic.count else \
                 'has no messages'
             if name == 'op':
-                raise InputError(f'{path}: topic {topic.name} {why}')
+                hint = f' ({bag.warnings[0]})' if bag.warnings else ''
+                raise InputError(f'{path}: topic {topic.name} {why}{hint}')
             notes.append(f'ignored {topic.name}: it {why}')
             continue
         topics[name] = topic
