@@ -6,11 +6,14 @@ The same as the ``loop`` executable, with the same parameter mapping
 
     ros2 launch stiction_ros loop.launch.py case:=undershoot
     ros2 launch stiction_ros loop.launch.py namespace:=loop2 rtf:=100.0 record:=/tmp/bag
+    ros2 launch stiction_ros loop.launch.py state_dir:=/tmp/loop_state   # respawn, resume
 
 With ``rtf`` > 0 the nodes run on a lockstep ``/clock`` from ``sim_clock``
 (which ends the run after the file's duration); with ``record`` the
 recorder writes sp, op, mv, pv to that bag directory.
 """
+
+import os
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction
@@ -21,7 +24,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from stiction_ros.loop_config import load_loop
 from stiction_ros.paths import config_file
-from stiction_ros.ros_params import loop_extras, node_parameters
+from stiction_ros.ros_params import loop_extras, LOOP_NODES, node_parameters
 
 EXECUTABLES = {'plant': 'plant', 'controller': 'controller', 'valve': 'valve',
                'recorder': 'recorder', 'sim_clock': 'sim_clock'}
@@ -35,8 +38,15 @@ def _nodes(context):
     params = node_parameters(cfg)
     params.update(loop_extras(cfg, rtf=rtf, record=arg['record'] or None))
     sim = {'use_sim_time': rtf > 0.0}
+    state = LaunchConfiguration('state_dir').perform(context)
+    for name in LOOP_NODES:
+        if state:
+            params[name]['state_file'] = os.path.join(state, f'{name}.state.json')
+    # A loop node that dies is started again and resumes from its state file, as the
+    # loop executable's --respawn does.
     nodes = {name: Node(package='stiction_ros', executable=EXECUTABLES[name], name=name,
                         namespace=arg['namespace'], output='screen',
+                        respawn=bool(state) and name in LOOP_NODES, respawn_delay=1.0,
                         parameters=[p] if name == 'sim_clock' else [p, sim])
              for name, p in params.items()}
     actions = list(nodes.values())
@@ -57,5 +67,8 @@ def generate_launch_description():
         DeclareLaunchArgument('rtf', default_value='0.0',
                               description='real-time factor of a sim clock; 0: wall time'),
         DeclareLaunchArgument('record', default_value='', description='bag directory to record'),
+        DeclareLaunchArgument('state_dir', default_value='',
+                              description='where the loop nodes keep their state; set, a node '
+                              'that dies is respawned and resumes from it'),
         OpaqueFunction(function=_nodes),
     ])

@@ -49,6 +49,23 @@ class PID:
         self._pv_prev = pv
         self.op = self.bias if op is None else float(op)
 
+    def snapshot(self):
+        """Return the controller's memory (integral, derivative filter, last PV and OP)."""
+        return {'i': self._i, 'd': self._d, 'pv_prev': self._pv_prev, 'op': self.op}
+
+    def restore(self, snap):
+        """Continue from a :meth:`snapshot`, so that a restarted controller does not bump OP."""
+        try:
+            values = [snap['i'], snap['d'], snap['op']]
+            pv = snap['pv_prev']
+            values = [check_finite(f'saved controller {k}', v)
+                      for k, v in zip(('i', 'd', 'op'), values)]
+            pv = None if pv is None else check_finite('saved controller pv_prev', pv)
+        except (KeyError, TypeError) as err:
+            raise ValueError(f'the saved controller state lacks or mangles {err}') from None
+        self._i, self._d, self.op = values
+        self._pv_prev = pv
+
     def update(self, sp, pv):
         """Return OP for set point ``sp`` and measurement ``pv`` at this sample."""
         sp = check_finite('set point', sp)

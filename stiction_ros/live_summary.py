@@ -17,6 +17,8 @@ from stiction_ros.ros_params import PHASES
 
 SIGNALS = ('sp', 'op', 'mv', 'pv')
 PUBLISHER = {'sp': 'controller', 'op': 'controller', 'mv': 'valve', 'pv': 'plant'}
+# Time stamps beyond this (s, 2001-09-09) are wall-clock time, earlier ones sim time.
+WALL_CLOCK = 1e9
 
 
 def on_grid(topic, sample_time, phase=0.5):
@@ -47,7 +49,12 @@ def summarise(bag, cfg):
     last = min(int(k[-1]) for k, _ in grids.values() if len(k))
     n = max(last - first + 1, 0)
     out['samples'] = {'first': first, 'last': last}
-    offline = simulate_loop(cfg, duration=last * ts) if n else None
+    # On wall time the samples are counted from 1970, and the profiles of the loop
+    # file began long before the run: there is no offline run to compare with.
+    wall = last * ts > WALL_CLOCK
+    if wall:
+        out['offline'] = 'none: a wall-time run'
+    offline = simulate_loop(cfg, duration=last * ts) if n and not wall else None
     for name, (k, v) in grids.items():
         sel = (k >= first) & (k <= last)
         kk, vv = k[sel], v[sel]

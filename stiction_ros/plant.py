@@ -139,6 +139,32 @@ class TransferFunctionPlant:
         self.time = 0.0
         self._last = 0.0
 
+    def snapshot(self):
+        """Return the plant's memory: state, MV history, time, noise generator."""
+        return {'x': [float(v) for v in self._x], 'hist': [float(v) for v in self._hist],
+                'time': self.time, 'last': self._last, 'rng': self._rng.bit_generator.state}
+
+    def restore(self, snap):
+        """Continue from a :meth:`snapshot`, so that a restarted plant does not jump to pv0."""
+        try:
+            x = np.array(snap['x'], dtype=np.float64)
+            hist = [float(v) for v in snap['hist']]
+            time, last = float(snap['time']), float(snap['last'])
+        except (KeyError, TypeError, ValueError) as err:
+            raise PlantError(f'the saved plant state lacks or mangles {err}') from None
+        if x.shape != self._x.shape or len(hist) != len(self._hist):
+            raise PlantError(f'the saved plant state has {x.size} states and {len(hist)} '
+                             f'past inputs; this plant has {self._x.size} and '
+                             f'{len(self._hist)} (another plant or sample time)')
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(hist))
+                and math.isfinite(time) and math.isfinite(last)):
+            raise PlantError('the saved plant state holds values that are not finite')
+        self._x, self._hist, self.time, self._last = x, hist, time, last
+        try:
+            self._rng.bit_generator.state = snap['rng']
+        except (KeyError, TypeError, ValueError):
+            pass    # the noise restarts from its seed; the plant itself is restored
+
     def _delayed(self, lag):
         """Return the deviation input applied ``lag`` samples ago (lag >= 1)."""
         return self._hist[lag - 1]

@@ -78,7 +78,8 @@ def loop_extras(cfg, rtf=0.0, record=None, duration=None):
     duration = float(duration if duration is not None else cfg['duration'])
     out = {}
     if record:
-        out['recorder'] = {'output': str(record), 'topics': ['sp', 'op', 'mv', 'pv']}
+        out['recorder'] = {'output': str(record),
+                           'topics': ['sp', 'op', 'mv', 'pv', 'held_inputs']}
     if rtf and rtf > 0:
         rec = 1 if record else 0
         waits = [f'pv={1 + rec}', f'op={1 + rec}', f'mv={1 + rec}',

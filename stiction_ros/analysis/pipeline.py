@@ -86,7 +86,7 @@ FILTER_TAUS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
 def fit_models(record, options, progress=None):
     """Return (fits, predictions): each model's Fit and its predicted MV."""
     op, mv = record.signals['op'], record.signals['mv']
-    segs = record.segments(min_samples=2)
+    segs = record.valve_segments(min_samples=2)
     ts = record.sample_time
     fits, predictions = [], {}
     for model in options.models:

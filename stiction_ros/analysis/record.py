@@ -56,6 +56,10 @@ class Record:
     start_time: str | None = None
     name: str = ''
     time_origin: float = 0.0
+    # Samples left out of the loop analysis whose OP and MV are still the valve's true
+    # input and output (a node after the valve acted on a held input): the valve fits
+    # keep them.  None: the same as ``valid``.
+    valve_ok: np.ndarray = None
 
     @property
     def samples(self):
@@ -74,6 +78,11 @@ class Record:
     def segments(self, min_samples=1):
         """Return half-open ``(start, stop)`` index pairs of the valid runs at least this long."""
         return [(a, b) for a, b in runs(self.valid) if b - a >= min_samples]
+
+    def valve_segments(self, min_samples=2):
+        """Return the runs the valve models are fitted on: valid, or ``valve_ok``."""
+        ok = self.valid if self.valve_ok is None else self.valid | self.valve_ok
+        return [(a, b) for a, b in runs(ok) if b - a >= min_samples]
 
     def window(self, t0=None, t1=None):
         """
@@ -105,6 +114,7 @@ class Record:
             t=np.arange(hi + 1 - lo) * ts, sample_time=ts,
             signals={k: v[lo:hi + 1].copy() for k, v in self.signals.items()},
             valid=self.valid[lo:hi + 1].copy(), excluded=excluded, source=dict(self.source),
+            valve_ok=None if self.valve_ok is None else self.valve_ok[lo:hi + 1].copy(),
             start_time=start, name=self.name, time_origin=self.time_origin + lo * ts)
         out.notes = general + [f'window {_span(t0, t1)}: samples {lo} to {hi} of {n}']
         out.notes += exclusion_notes(excluded, ts, start)

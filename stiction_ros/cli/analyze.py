@@ -191,7 +191,7 @@ def run_explain(analysis, args, say):
     from stiction_ros.cli.batch import default_jobs
     jobs = args.jobs if getattr(args, 'jobs', None) is not None else default_jobs()
     sections, arrays = explain(rec.t, rec.signals['op'], rec.signals['mv'],
-                               rec.segments(min_samples=2), rec.sample_time,
+                               rec.valve_segments(min_samples=2), rec.sample_time,
                                holdout=args.holdout, reps=args.bootstrap, progress=say,
                                jobs=max(1, jobs))
     analysis.report.update(sections)
@@ -228,7 +228,7 @@ def write_html(analysis, path, say):
     for fit in analysis.fits:
         if fit.source == 'identified':
             land = mse_landscape(rec.signals['op'], rec.signals['mv'], fit,
-                                 rec.segments(min_samples=2), rec.sample_time)
+                                 rec.valve_segments(min_samples=2), rec.sample_time)
             paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{fit.model}.png'))
     write_text(html_path, render(analysis.report, [p for p in paths if p]))
     say(f'wrote {html_path} (figures in {fig_dir})')

@@ -12,6 +12,7 @@ Examples::
     loop config/concentration_loop.yaml --case undershoot --rtf 100 --record out/bag
     loop config/concentration_loop.yaml --namespace /loop2 --duration 600   # real time
     loop config/concentration_loop.yaml --case overshoot --write-params overshoot.params.yaml
+    loop config/concentration_loop.yaml --inject op:drop=0.1,jitter=0.3 --respawn --record b
 
 Node logs go to ``--logs`` (default: next to the bag, or a temporary directory).
 """
@@ -34,10 +35,38 @@ from stiction_ros.ros_params import loop_extras, LOOP_NODES, params_file
 
 MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'valve_node',
            'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
+# The node that consumes each loop topic: where its injected faults happen.
+CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
+LINK_KEYS = ('drop', 'delay', 'jitter', 'seed')
 
 
 class LoopError(RuntimeError):
     """The loop could not run; the message says which node and why."""
+
+
+# A loop node is restarted only after it ran this long (s).
+RESPAWN_AFTER = 3.0
+
+
+def parse_inject(items):
+    """Return ``{topic: {key: value}}`` from ``TOPIC:key=value,...`` strings."""
+    out = {}
+    for item in items or ():
+        topic, _, spec = item.partition(':')
+        if topic not in CONSUMER:
+            raise ConfigError(f'--inject {item!r}: the topic must be one of {sorted(CONSUMER)}')
+        faults = {}
+        for part in filter(None, spec.split(',')):
+            key, sep, value = part.partition('=')
+            try:
+                if not sep or key not in LINK_KEYS:
+                    raise ValueError
+                faults[key] = int(value) if key == 'seed' else float(value)
+            except ValueError:
+                raise ConfigError(f'--inject {item!r}: {part!r} is not one of '
+                                  + ', '.join(f'{k}=NUMBER' for k in LINK_KEYS)) from None
+        out[topic] = faults
+    return out
 
 
 def node_command(name, namespace, params_path, extra=()):
@@ -56,11 +85,23 @@ class Processes:
         self.log_dir = Path(log_dir)
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.procs = {}
+        self.started, self.commands = {}, {}
 
     def start(self, name, cmd, env):
-        log = open(self.log_dir / f'{name}.log', 'wb')
+        log = open(self.log_dir / f'{name}.log', 'ab')
         self.procs[name] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env,
                                              start_new_session=True), log)
+        self.started[name] = time.monotonic()
+        self.commands[name] = (cmd, env)
+
+    def restart(self, name):
+        """Start a node that stopped again, with the same command (its log goes on)."""
+        self.procs[name][1].close()
+        self.start(name, *self.commands[name])
+
+    def uptime(self, name):
+        """Return how long ago the node was (last) started, s."""
+        return time.monotonic() - self.started[name]
 
     def failed(self):
         """Return the name of a node that has exited with an error, or None."""
@@ -93,13 +134,19 @@ class Processes:
 
 
 def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=None,
-             progress=None, realtime_priority=0):
+             progress=None, realtime_priority=0, respawn=False, respawned=None, inject=None):
     """
     Run the loop; return the bag path (or None) after every node has stopped.
 
     ``rtf`` > 0 runs on a ``/clock`` at that real-time factor (else wall
     time, where ``realtime_priority`` > 0 runs the loop nodes under
-    SCHED_FIFO).  Raises :class:`LoopError` when a node fails.
+    SCHED_FIFO).  Each loop node keeps its state in the log directory, so
+    with ``respawn`` a loop node that dies after its first seconds is
+    started again and resumes where it was (counted in the ``respawned``
+    dict).  ``inject`` (from :func:`parse_inject`) makes the node that uses a
+    topic lose and delay its messages (``inject_*`` parameters); the recorder
+    still records the topic as sent.  Raises :class:`LoopError` when a node
+    fails otherwise.
     """
     ts = float(cfg['sample_time'])
     duration = float(duration if duration is not None else cfg['duration'])
@@ -122,14 +169,31 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
         if record:
             procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
         rt_arg = ['-p', f'realtime_priority:={int(realtime_priority)}'] if not sim else []
+        faults = {}
+        for topic, spec in (inject or {}).items():
+            faults.setdefault(CONSUMER[topic], []).extend(
+                a for k, v in spec.items() for a in ('-p', f'inject_{k}:={v}'))
         for name in LOOP_NODES:
-            procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg), env)
+            state = work / f'{name}.state.json'
+            state.unlink(missing_ok=True)       # a state of an earlier run is not this run's
+            procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg + [
+                '-p', f'state_file:={state}'] + faults.get(name, [])), env)
         end = None if sim else time.monotonic() + duration + 0.75 * ts
         if sim:
             procs.start('sim_clock', node_command('sim_clock', namespace, params), env)
         while True:
             time.sleep(0.1)
             bad = procs.failed()
+            # A node that started, ran and died (killed, crashed) is restarted; one that
+            # fails at once (bad parameters) would only fail again.
+            if bad in LOOP_NODES and respawn and procs.uptime(bad) > RESPAWN_AFTER:
+                code = procs.procs[bad][0].returncode
+                print(f'loop: node {bad} stopped (exit {code}); restarting it from its state',
+                      file=sys.stderr)
+                procs.restart(bad)
+                if respawned is not None:
+                    respawned[bad] = respawned.get(bad, 0) + 1
+                continue
             if bad is not None:
                 raise LoopError(f'node {bad} stopped (exit {procs.procs[bad][0].returncode}); '
                                 f'its log {work / (bad + ".log")} ends:\n{procs.tail(bad)}')
@@ -163,6 +227,12 @@ def main(argv=None):
                     '(1-98; needs CAP_SYS_NICE)')
     ap.add_argument('--record', metavar='DIR', help='record sp, op, mv, pv to this bag directory')
     ap.add_argument('--logs', metavar='DIR', help='directory for the node logs')
+    ap.add_argument('--inject', action='append', metavar='TOPIC:FAULTS',
+                    help='lose and delay messages of op, mv or pv on their way to the node '
+                    'that uses them, e.g. op:drop=0.1,delay=0.2,jitter=0.3 (seconds; repeatable)')
+    ap.add_argument('--respawn', action='store_true',
+                    help='restart a loop node that dies during the run; it resumes from the '
+                    'state it saved after its last sample')
     ap.add_argument('--json', metavar='FILE', help='write the summary as JSON')
     ap.add_argument('--write-params', metavar='FILE',
                     help='only write the ROS parameter file of the loop nodes, and exit')
@@ -182,12 +252,15 @@ def main(argv=None):
               f'node logs in {logs or "a temporary directory"}', file=sys.stderr)
         if not 0 <= args.realtime_priority <= 98:
             raise ConfigError('--realtime-priority must be 0 (off) to 98')
+        respawned = {}
         bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs,
-                       realtime_priority=args.realtime_priority)
+                       realtime_priority=args.realtime_priority, respawn=args.respawn,
+                       respawned=respawned, inject=parse_inject(args.inject))
         print(f'loop: ran in {time.monotonic() - t0:.1f} s', file=sys.stderr)
         if bag is not None:
             summary = summarise(read_bag(bag), cfg)
             summary['bag'] = str(bag)
+            summary['respawned'] = respawned
             print(format_summary(summary))
             print(f'bag: {bag}')
             if args.json:

@@ -165,6 +165,35 @@ class ValveModel:
             run(a, y, self.state)
         return y
 
+    def snapshot(self):
+        """Return the dynamic state as plain JSON-able data (see :meth:`restore`)."""
+        return {'model': self.name, 'state': None if self.state is None else
+                [float(x) for x in self.state]}
+
+    def restore(self, snap):
+        """
+        Continue from a :meth:`snapshot`: position, stuck or moving, direction, stored force.
+
+        A live valve that restarts must not jump; its memory is all in
+        ``state``.  Raises ModelError if ``snap`` is not this model's.
+        """
+        if not isinstance(snap, dict) or snap.get('model') != self.name:
+            raise ModelError(f'{self.name}: the saved state is of model '
+                             f'{snap.get("model") if isinstance(snap, dict) else snap!r}')
+        state = snap.get('state')
+        if state is None:
+            self.state = None
+            return
+        want = len(self._new_state(50.0))
+        try:
+            arr = np.array(state, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ModelError(f'{self.name}: the saved state is not a list of numbers') from None
+        if arr.shape != (want,) or not np.all(np.isfinite(arr)):
+            raise ModelError(f'{self.name}: the saved state has {arr.size} values, '
+                             f'{want} finite ones expected')
+        self.state = arr
+
     @property
     def position(self):
         """Return the current position, or None before the first sample."""

@@ -44,6 +44,8 @@ def parse_source(text, value, where):
 class ControllerNode(SampledNode):
     """The controller: one PI(D) update per sample on the latest PV."""
 
+    KIND = 'controller'
+
     def __init__(self):
         super().__init__('controller', 0.5, [
             Param('mode', 'closed_loop', 'closed_loop: PI(D) on pv; open_loop: OP from '
@@ -113,9 +115,21 @@ class ControllerNode(SampledNode):
         if changes.get('mode') == 'closed_loop':
             self.pid.reset(op=self.pid.op, pv=self.pv)
 
-    def _on_pv(self, msg):
-        if self.accept('pv', msg.data):
-            self.pv = msg.data
+    def snapshot_state(self):
+        """Return the PI(D) memory and the last PV."""
+        return {'pid': self.pid.snapshot(), 'pv': self.pv}
+
+    def restore_state(self, state):
+        """Resume the saved controller, so that OP continues without a bump."""
+        self.pid.restore(state['pid'])
+        self.pv = None if state.get('pv') is None else float(state['pv'])
+
+    def _on_pv(self, msg, info):
+        self.receive('pv', msg.data, info)
+
+    def on_input(self, topic, value):
+        """Use the newest valid PV."""
+        self.pv = value
 
     def on_sample(self, k, t):
         """Compute OP for sample ``k`` from the latest PV and publish OP and SP."""
@@ -123,7 +137,9 @@ class ControllerNode(SampledNode):
         if self.values['mode'] == 'open_loop':
             op = self.op_source(t)
             self.pid.op = op
-        elif self.pv is None:
+        elif self.pv is None or not self._guard('pv').fresh:
+            # No new PV since the last sample (lost, late, or the plant is down):
+            # hold OP rather than integrate an old error.
             op = self.pid.op
         else:
             op = self.pid.update(sp, self.pv)

@@ -24,6 +24,8 @@ MAX_CATCH_UP = 10000
 class PlantNode(SampledNode):
     """The process: one exact ZOH step per sample on the latest MV."""
 
+    KIND = 'plant'
+
     def __init__(self):
         fixed = ' Fixed for the run (the plant state depends on it).'
         super().__init__('plant', 0.25, [
@@ -58,7 +60,7 @@ class PlantNode(SampledNode):
         self._k = None
         self.pub = self.create_publisher(Float64, 'pv', DATA_QOS)
         self.create_subscription(Float64, 'mv', self._on_mv, DATA_QOS)
-        self.watch('mv')
+        self.watch('mv', lag=1)   # the valve publishes MV late in the previous sample
         self.start()
         self.get_logger().info(
             f'{list(v["num"])}/{list(v["den"])} e^-{v["delay"]}s at {self.sample_time} s')
@@ -68,9 +70,22 @@ class PlantNode(SampledNode):
         if 'noise_std' in changes:
             self.plant.noise_std = changes['noise_std']
 
-    def _on_mv(self, msg):
-        if self.accept('mv', msg.data):
-            self.mv = msg.data
+    def snapshot_state(self):
+        """Return the process state, the MV it holds and the sample it is at."""
+        return {'plant': self.plant.snapshot(), 'mv': self.mv, 'k': self._k}
+
+    def restore_state(self, state):
+        """Resume the saved process; it catches up over the samples it was down, on the held MV."""
+        self.plant.restore(state['plant'])
+        self.mv = None if state.get('mv') is None else float(state['mv'])
+        self._k = None if state.get('k') is None else int(state['k'])
+
+    def _on_mv(self, msg, info):
+        self.receive('mv', msg.data, info)
+
+    def on_input(self, topic, value):
+        """Use the newest valid MV."""
+        self.mv = value
 
     def on_sample(self, k, t):
         """Advance over the held MV, then publish PV for sample ``k``."""

@@ -84,7 +84,8 @@ class RecorderNode(Node):
         self.specs = [
             Param('output', '', 'Bag directory to create (must not exist or be empty).',
                   read_only=True),
-            Param('topics', ['sp', 'op', 'mv', 'pv'], 'Topics to record; relative names '
+            Param('topics', ['sp', 'op', 'mv', 'pv', 'held_inputs'],
+                  'Topics to record; relative names '
                   "resolve in the recorder's namespace.", read_only=True),
             Param('compression', 'zstd', 'Chunk compression.', choices=tuple(COMPRESSION),
                   read_only=True),

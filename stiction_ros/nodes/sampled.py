@@ -23,19 +23,32 @@ same grid with a quarter of the wake-ups (82.6 % -> 97-98 % of cycles within
 1 ms at 100 Hz, measured); a tick that comes so late that its sample is over
 acts for the next one, and that sample has no message.  ``realtime_priority``
 runs the process under SCHED_FIFO.
+
+Degraded inputs: a sample at which the node acts without a new value of an
+input since its previous action (the message was lost, late, or its
+producer is down) acts on the held value; the node says so on
+``/diagnostics`` and publishes ``held_inputs`` (``diagnostic_msgs/KeyValue``:
+the input topic and the value acted on), which the recorder records and the
+analyzer uses to put the valve's real input in place, or leave the sample
+out.  With ``state_file`` the node saves
+its state after every sample and resumes from it when restarted
+(``state_file.py``).
 """
 
 from collections import deque
 import math
 import os
+from pathlib import Path
 import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
 from stiction_ros.nodes.params import check_choices, declare, Param
 
@@ -52,6 +65,8 @@ class StartupError(RuntimeError):
 
 class SampledNode(Node):
     """A node that calls :meth:`on_sample` once per sample at its phase."""
+
+    KIND = 'node'
 
     def __init__(self, name, phase, params):
         super().__init__(name)
@@ -71,28 +86,48 @@ class SampledNode(Node):
                   'rejected and the last good value held.', 1.0, 1e300),
             Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
                   'reports it stale (ERROR).', 1e-3, 1e6),
+            Param('inject_drop', 0.0, 'Fault injection: probability that an input message is '
+                  'lost on its way in.', 0.0, 1.0),
+            Param('inject_delay', 0.0, 'Fault injection: delay of every input message, s.',
+                  0.0, 60.0),
+            Param('inject_jitter', 0.0, 'Fault injection: random extra delay of an input '
+                  'message, uniform up to this, s (messages stay in order).', 0.0, 60.0),
+            Param('inject_seed', 0, 'Seed of the injected faults. Fixed for the run.', 0,
+                  2**31 - 1, read_only=True),
+            Param('state_file', '', 'File the node writes its state to after every sample and '
+                  'resumes from when restarted ("": none). Fixed for the run.', read_only=True,
+                  constraint='a writable file path, or empty'),
         ]
         self.param_specs = common + list(params)
         self.values = declare(self, self.param_specs)
         self.sample_time = self.values['sample_time']
+        self._sim = bool(self.get_parameter('use_sim_time').value)
         self._slot = int(round(self.values['phase'] * SLOTS))
         self._ts_ns = int(round(self.sample_time * 1e9))
         self.last_k = None
         self.samples = 0
         self.skipped = 0
+        self.early = 0
         # The last 100 000 samples' lateness, for the shutdown summary (bounded memory).
         self._late = deque(maxlen=100_000)
         self.rejected = 0
         self.input_guards = {}
+        self.resumed_from = None
+        self._store = None
+        self._inject_rng = np.random.default_rng(self.values['inject_seed'])
+        self._in_flight = deque()       # (due ns, topic, value, info), due times in order
+        self.injected = {'lost': 0, 'delayed': 0}
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._held_pub = self.create_publisher(KeyValue, 'held_inputs', DATA_QOS)
         self.create_timer(1.0, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def start(self):
-        """Register the parameter callbacks and start the sample timer."""
+        """Resume from the state file, register the parameter callbacks, start the timer."""
+        self._resume()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._post_set)
-        if self.get_parameter('use_sim_time').value:
+        if self._sim:
             self._timer = self.create_timer(self.sample_time / SLOTS, self._tick)
         else:
             self._realtime(self.values['realtime_priority'])
@@ -145,8 +180,17 @@ class SampledNode(Node):
             self.get_logger().warning(
                 f'clock went back from sample {self.last_k} to {k}; following it')
             self.last_k = k - 1
+        if slot < self._slot and not self._sim and k != self.last_k:
+            # On wall time there is one tick per sample: one that fires a little before
+            # the phase instant (timer jitter) waits for it rather than lose the sample.
+            early = k * self._ts_ns + self._slot * (self._ts_ns // SLOTS) - now
+            if early < self._ts_ns // SLOTS:
+                time.sleep(early / 1e9)
+                self.early += 1
+                slot = self._slot
         if slot < self._slot or k == self.last_k:
             return
+        self._arrive(now)
         if self.last_k is not None and k > self.last_k + 1:
             self.skipped += k - self.last_k - 1
         self.last_k = k
@@ -155,6 +199,61 @@ class SampledNode(Node):
         # How late this sample's action finished, for the summary at shutdown.
         due = k * self._ts_ns + self._slot * self._ts_ns // SLOTS
         self._late.append(self.get_clock().now().nanoseconds - due)
+        for topic, guard in self.input_guards.items():
+            if guard.acted(None if self._sim else k):
+                # The value acted on: an analyzer can put it in place of the recorded one.
+                self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
+                                                value=repr(guard.last_good[1])))
+                self.get_logger().warning(
+                    f'acted on a held {topic} ({guard.held} samples so far): a message was '
+                    'lost or late', throttle_duration_sec=5.0)
+        if self._store is not None:
+            self._save(k)
+
+    # -- state on disk: resume where a killed node stopped ---------------------------
+    def snapshot_state(self):
+        """Return what the node must remember across a restart (JSON-able), or None."""
+        return None
+
+    def restore_state(self, state):
+        """Continue from ``snapshot_state()`` output; raise ValueError if it does not fit."""
+
+    def _save(self, k):
+        try:
+            self._store.save({'node': self.KIND, 'sample_time': self.sample_time, 'k': k,
+                              'state': self.snapshot_state()})
+        except (OSError, ValueError) as err:
+            self.get_logger().error(f'cannot save the state to {self.values["state_file"]}: '
+                                    f'{err}', throttle_duration_sec=10.0)
+
+    def _resume(self):
+        path = self.values['state_file']
+        if not path:
+            return
+        try:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise StartupError(f'state_file {path}: cannot create its directory: {err}') from None
+        doc = None
+        try:
+            doc = state_file.load(path, self.KIND, self.sample_time)
+            if doc is not None:
+                self.restore_state(doc['state'])
+        except (ValueError, KeyError, TypeError) as err:
+            # Kept for a post-mortem, and out of the way of the new state.
+            os.replace(path, path + '.unusable')
+            self.get_logger().warning(f'cannot resume ({err}); starting afresh, the old file '
+                                      f'is {path}.unusable')
+            doc = None
+        try:
+            self._store = state_file.StateStore(path)
+        except OSError as err:
+            raise StartupError(f'state_file {path}: cannot write it: {err}') from None
+        if doc is None:
+            return
+        self.last_k = doc['k']
+        self.resumed_from = doc['k']
+        self.get_logger().info(f'resumed from {path}, saved at sample {doc["k"]}')
 
     def close(self):
         """Say how many samples the node acted on, and how late (run.py calls this at shutdown)."""
@@ -164,13 +263,58 @@ class SampledNode(Node):
             pick = [late[min(len(late) - 1, int(q * len(late)))] / 1e6 for q in (0.5, 0.99)]
             stats = (f'; done {pick[0]:.2f} ms after its phase instant (p50), {pick[1]:.2f} ms'
                      f' (p99), {late[-1] / 1e6:.2f} ms (max)')
-        print(f'{self.get_name()}: acted on {self.samples} samples, skipped {self.skipped}'
-              f'{stats}; {self.rejected} inputs rejected', file=sys.stderr)
+        held = ', '.join(f'{g.held} on a held {t}' for t, g in self.input_guards.items()
+                         if g.held)
+        held = held or 'none on a held input'
+        faults = ''
+        if any(self.injected.values()):
+            faults = (f'; injected: {self.injected["lost"]} inputs lost, '
+                      f'{self.injected["delayed"]} delayed')
+        print(f'{self.get_name()}: acted on {self.samples} samples ({held}; {self.early} ticks '
+              f'early), skipped {self.skipped}{stats}; {self.rejected} inputs rejected{faults}',
+              file=sys.stderr)
 
-    def accept(self, topic, value):
-        """Return True for a usable input; count, warn (throttled) and report otherwise."""
+    def receive(self, topic, value, info=None):
+        """Take an input message: lose or delay it if faults are injected, else use it."""
+        v = self.values
+        if v['inject_drop'] > 0.0 and self._inject_rng.random() < v['inject_drop']:
+            self.injected['lost'] += 1
+            return
+        wait = v['inject_delay']
+        if v['inject_jitter'] > 0.0:
+            wait += self._inject_rng.uniform(0.0, v['inject_jitter'])
+        if wait > 0.0 or self._in_flight:
+            due = self.get_clock().now().nanoseconds + int(wait * 1e9)
+            if self._in_flight:
+                due = max(due, self._in_flight[-1][0])   # a reliable link keeps the order
+            self._in_flight.append((due, topic, value, info))
+            self.injected['delayed'] += wait > 0.0
+            return
+        if self.accept(topic, value, info):
+            self.on_input(topic, value)
+
+    def _arrive(self, now):
+        # Delayed inputs whose time has come arrive just before the node acts.
+        while self._in_flight and self._in_flight[0][0] <= now:
+            _, topic, value, info = self._in_flight.popleft()
+            if self.accept(topic, value, info):
+                self.on_input(topic, value)
+
+    def on_input(self, topic, value):
+        """Take a valid value of input ``topic``."""
+
+    def accept(self, topic, value, info=None):
+        """
+        Return True for a usable input; count, warn (throttled) and report otherwise.
+
+        ``info`` (the subscription's message info) dates the value: on wall time
+        its send stamp gives the sample it was sent in, so a late one is found.
+        """
         guard = self._guard(topic)
-        if guard.check(value, self._steady()):
+        sample = None
+        if info is not None and not self._sim:
+            sample = info['source_timestamp'] // self._ts_ns
+        if guard.check(value, self._steady(), sample):
             return True
         self.rejected += 1
         self.get_logger().warning(
@@ -178,9 +322,14 @@ class SampledNode(Node):
             f'the last good value ({self.rejected} rejected so far)', throttle_duration_sec=5.0)
         return False
 
-    def watch(self, topic):
-        """Report ``topic`` on /diagnostics from now on, stale until its first valid value."""
-        self._guard(topic)
+    def watch(self, topic, lag=0):
+        """
+        Report ``topic`` on /diagnostics from now on, stale until its first valid value.
+
+        ``lag`` is 1 for an input published later in the sample than this node acts
+        (the plant's MV): its newest value is then the previous sample's.
+        """
+        self._guard(topic).lag = lag
 
     def _guard(self, topic):
         if topic not in self.input_guards:

@@ -45,6 +45,8 @@ def model_params():
 class ValveNode(SampledNode):
     """The valve: one model step per sample on the latest OP."""
 
+    KIND = 'valve'
+
     def __init__(self):
         self.model_specs = model_params()
         super().__init__('valve', 0.75, [
@@ -96,9 +98,28 @@ class ValveNode(SampledNode):
         if mine:
             self.model.set_params(**mine)
 
-    def _on_op(self, msg):
-        if self.accept('op', msg.data):
-            self.op = msg.data
+    def snapshot_state(self):
+        """Return the model's state (position, stuck or moving, direction) and the last OP."""
+        return {'model': self.model.snapshot(), 'op': self.op}
+
+    def restore_state(self, state):
+        """Resume the saved valve; another model resumes at the saved position, at rest."""
+        snap = state['model']
+        if snap.get('model') == self.model.name:
+            self.model.restore(snap)
+        elif snap.get('state'):
+            self.get_logger().warning(f'the saved valve ran {snap.get("model")!r}; '
+                                      f'{self.model.name} starts at its position, at rest')
+            self.model.reset(y0=min(max(float(snap['state'][0]), 0.0), 100.0))
+        op = state.get('op')
+        self.op = None if op is None else float(op)
+
+    def _on_op(self, msg, info):
+        self.receive('op', msg.data, info)
+
+    def on_input(self, topic, value):
+        """Use the newest valid OP."""
+        self.op = value
 
     def on_sample(self, k, t):
         """Move the valve on the latest OP (or hold it before the first) and publish MV."""

@@ -9,9 +9,21 @@ sample.  For the project's live loop (PV at 1/4, OP at 1/2, MV at 3/4 of
 the sample) that puts pv(k), op(k), mv(k) together, as ``floor(t / Ts)``
 does.  Stamps: the send time (``publish_time``) where the bag has it on the
 same clock as the receive time, else the receive time (``log_time``).
+
+A ``held_inputs`` topic (the loop nodes publish one message per sample at
+which they acted on an input that had not been refreshed, with the value
+they acted on) corrects or excludes those samples.  Where the valve held OP,
+the recorded ``op`` (what the controller sent) is not what moved the valve:
+it is replaced by the value the valve used, so the valve models see their
+real input and keep their state.  Where the plant held MV or the controller
+PV, the sample is excluded from the loop analysis, but the valve fits keep
+it: OP and MV there are the valve's true input and output, and restarting
+the model after every such sample would lose its state (stuck or moving,
+direction), which costs more than any sample.
 """
 
 from datetime import datetime, timezone
+import math
 from pathlib import Path
 
 import numpy as np
@@ -20,13 +32,23 @@ from stiction_ros.analysis.record import assemble, InputError, SIGNALS
 from stiction_ros.bag.reader import BagReadError, read_bag
 
 FLOAT64 = 'std_msgs/msg/Float64'
+KEY_VALUE = 'diagnostic_msgs/msg/KeyValue'
+HELD = ('a loop node acted on a held input (a message lost or late, or its sender down): '
+        'the plant on an old MV or the controller on an old PV (the valve fits keep these '
+        'samples: their OP and MV are right)')
+# The signal a loop node publishes from each input: a hold of op shows in mv, and so on.
+PRODUCES = {'op': 'mv', 'pv': 'op', 'mv': 'pv'}
 # Stamps after this (2001-09-09) are taken as wall-clock time; earlier is sim time.
 EPOCH_LIKE = 1e9
 MAX_SAMPLES = 50_000_000
 
 
-def read_bag_record(path, namespace=None):
-    """Return the :class:`Record` of the loop topics of the bag at ``path``."""
+def read_bag_record(path, namespace=None, held=True):
+    """
+    Return the :class:`Record` of the loop topics of the bag at ``path``.
+
+    ``held=False`` ignores ``held_inputs``: the signals as recorded.
+    """
     try:
         bag = read_bag(path)
     except BagReadError as err:
@@ -90,6 +112,18 @@ def read_bag_record(path, namespace=None):
         if outside:
             notes.append(f'{name}: ignored {outside} message' + ('s' if outside > 1 else '')
                          + " outside op's time range")
+    reasons = {}
+    held = bag.topics.get(f'{prefix}/held_inputs') if held else None
+    if held is not None and held.type == KEY_VALUE and held.count:
+        mask, used, note = _held_marks(held, stamp_kind, ref, ts, center, phases, k0, n)
+        fixed = np.isfinite(used) & np.isfinite(signals['op'])
+        if fixed.any():
+            signals['op'] = np.where(fixed, used, signals['op'])
+            notes.append(f'op: {int(fixed.sum())} samples hold the OP the valve acted on, not '
+                         'the one the controller sent (lost or late on the way)')
+        reasons[HELD] = mask
+        if note:
+            notes.append(note)
     origin = ref / 1e9 + center + (k0 - 0.5) * ts
     start = None
     if origin > EPOCH_LIKE:
@@ -97,8 +131,45 @@ def read_bag_record(path, namespace=None):
     source = {'path': str(path), 'format': 'bag', 'stamps': stamp_kind,
               'topics': {name: topic.name for name, topic in topics.items()},
               'phases': phases}
-    return assemble(signals, ts, notes=notes, source=source, start_time=start,
-                    name=prefix or Path(path).name, time_origin=float(origin))
+    record = assemble(signals, ts, reasons=reasons, notes=notes, source=source,
+                      start_time=start, name=prefix or Path(path).name,
+                      time_origin=float(origin))
+    if HELD in reasons and 'mv' in signals:
+        record.valve_ok = (reasons[HELD] & np.isfinite(signals['op'])
+                           & np.isfinite(signals['mv']))
+    return record
+
+
+def _held_marks(topic, stamp_kind, ref, ts, center, phases, k0, n):
+    """
+    Read a ``held_inputs`` topic.
+
+    Returns the samples to exclude (a held MV or PV, or a held OP without a
+    readable value), the OP the valve acted on where it held OP (NaN
+    elsewhere), and a note if the topic cannot be read.
+    """
+    mask = np.zeros(n, dtype=bool)
+    used = np.full(n, np.nan)
+    try:
+        marks = topic.decoded()
+    except Exception as err:  # noqa: B902  (any decoding failure is bad input)
+        return mask, used, f'ignored {topic.name}: cannot decode it ({err})'
+    t = (np.asarray(getattr(topic, stamp_kind), dtype=np.int64) - ref) / 1e9
+    for stamp, mark in zip(t, marks):
+        name = str(mark.key).rsplit('/', 1)[-1]
+        out = PRODUCES.get(name, 'op')
+        k = int(align.bins([stamp], ts, center + phases.get(out, 0.0) * ts)[0]) - k0
+        if not 0 <= k < n:
+            continue
+        try:
+            value = float(mark.value)
+        except ValueError:
+            value = math.nan
+        if name == 'op' and math.isfinite(value):
+            used[k] = value
+        else:
+            mask[k] = True
+    return mask, used, None
 
 
 def _prefix(path, bag, namespace):
