@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo reproduce accuracy test fuzz lint bench bench-explain bench-all colcon clean
+.PHONY: venv demo reproduce accuracy test fuzz lint bench bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -58,8 +58,13 @@ bench: venv
 bench-explain: venv
 	$(PY) -m bench.explain_bench
 
-# Every benchmark: speed (bench) and --explain's accuracy (bench-explain), about 25 min.
-bench-all: bench bench-explain
+# 20 loops of 3 node processes at 10 Hz for 10 min, recorded into one bag, after a
+# 1-loop baseline (about 15 min): the load section of docs/BENCHMARKS.md.
+bench-load: venv
+	$(PY) -m bench.load_bench
+
+# Every benchmark: speed, --explain's accuracy and load, about 40 min.
+bench-all: bench bench-explain bench-load
 
 colcon: venv
 	$(VENV)/bin/colcon build --base-paths . --build-base /tmp/stiction_ros_colcon/build \

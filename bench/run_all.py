@@ -19,6 +19,7 @@ from bench.batch_bench import bench_batch, markdown as batch_markdown
 from bench.explain_speed import bench_explain_speed, markdown as explain_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
 from bench.live_bench import bench_live, markdown as live_markdown
+from bench.load_bench import carried_section
 from bench.loop_bench import bench_loop, markdown as loop_markdown
 from bench.physical_bench import bench_physical, markdown as physical_markdown
 import numpy as np
@@ -131,6 +132,10 @@ def main():
     lines += live_markdown(live)
     if batch:
         lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')
+    # The load benchmark (make bench-load) takes a quarter of an hour: its section stays.
+    carried = carried_section()
+    if carried:
+        lines += [''] + carried
     out = ROOT / 'docs' / 'BENCHMARKS.md'
     out.write_text('\n'.join(lines), encoding='utf-8')
     print(out.read_text())

@@ -124,6 +124,8 @@ class RecorderNode(Node):
         self._unflushed = 0
         self.stopped = None     # why recording stopped early, if it did
         self.not_recorded = 0
+        self.publishers_of, self.last_seq = {}, {}
+        self.transport_lost = self.before_match = 0
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.05, self._discover, clock=wall)
         self.create_timer(v['flush_period'], self._flush, clock=wall)
@@ -155,6 +157,7 @@ class RecorderNode(Node):
                              durability=DurabilityPolicy.VOLATILE)
             if all(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs):
                 qos.reliability = ReliabilityPolicy.BEST_EFFORT
+            self.publishers_of[name] = len(pubs)
             self.subs[name] = self.create_subscription(
                 msg_type, name, self._callback(name), qos, raw=True)
             self.get_logger().info(f'subscribed to {name} [{types[0]}]')
@@ -198,6 +201,7 @@ class RecorderNode(Node):
 
     def _callback(self, name):
         def store(data, info):
+            self._count_sequence(name, info.get('publication_sequence_number'))
             sent = info['source_timestamp']
             if not self._sim:
                 self._write(name, data, sent, info['received_timestamp'])
@@ -219,6 +223,18 @@ class RecorderNode(Node):
                     break
                 store(*got)
         return on_message
+
+    def _count_sequence(self, name, seq):
+        # The publisher numbers its messages: a jump is a message lost on the way, and a
+        # first number above 1 counts those sent before this subscription matched.
+        if not seq or self.publishers_of.get(name, 0) != 1:
+            return
+        last = self.last_seq.get(name)
+        if last is None:
+            self.before_match += seq - 1
+        elif seq > last + 1:
+            self.transport_lost += seq - last - 1
+        self.last_seq[name] = seq
 
     def _flush(self):
         if self.stopped:
@@ -250,7 +266,9 @@ class RecorderNode(Node):
                 self._fail(err)
         counts = ', '.join(f'{n}: {t["count"]}' for n, t in self.writer.topics.items())
         print(f'recorder: wrote {self.writer.message_count} messages to '
-              f'{self.writer.directory} ({counts})', file=sys.stderr)
+              f'{self.writer.directory} ({counts}); {self.transport_lost} lost on the way '
+              f'(gaps in the publishers\' sequence numbers), {self.before_match} sent before '
+              'the recorder subscribed', file=sys.stderr)
         if self.stopped:
             print(f'recorder: stopped early ({self.stopped}); {self.not_recorded} messages '
                   'received after that were not recorded', file=sys.stderr)
