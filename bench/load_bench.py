@@ -28,14 +28,11 @@ import datetime
 import os
 from pathlib import Path
 import re
-import signal
 import sys
 import tempfile
 import time
 
 import numpy as np
-import yaml
-
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import node_command, Processes
 from stiction_ros.cli.study import machine_description
@@ -43,6 +40,7 @@ from stiction_ros.loop_config import load_loop
 from stiction_ros.nodes import state_file
 from stiction_ros.paths import config_file
 from stiction_ros.ros_params import LOOP_NODES, params_file, PHASES
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / 'docs' / 'BENCHMARKS.md'
@@ -85,22 +83,25 @@ def run_loops(n_loops, seconds, sample_time=0.1, say=print):
     procs.start('recorder', node_command('recorder', '', rec_params), env)
     time.sleep(3.0)
     pids = {}
+    # One loop at a time: sixty processes importing at once starve the ones running.
     for ns in spaces:
         params = work / f'{ns.strip("/")}.yaml'
         params.write_text(params_file(cfg, ns), encoding='utf-8')
+        keys = []
         for name in LOOP_NODES:
             key = f'{ns.strip("/")}_{name}'
             state = work / f'{key}.state'
             procs.start(key, node_command(name, ns, params, [
                 '-p', 'use_sim_time:=false', '-p', f'state_file:={state}']), env)
             pids[key] = procs.procs[key][0].pid
-    say(f'load: started {3 * n_loops} loop nodes and a recorder; waiting for every node')
-    deadline = time.monotonic() + 120 + 6 * n_loops
-    while not all(_has_acted(work / f'{key}.state') for key in pids):
-        if time.monotonic() > deadline or procs.failed():
-            procs.stop(list(procs.procs))
-            raise RuntimeError(f'load: nodes did not all start; logs in {work}')
-        time.sleep(0.5)
+            keys.append(key)
+        deadline = time.monotonic() + 120
+        while not all(_has_acted(work / f'{key}.state') for key in keys):
+            if time.monotonic() > deadline or procs.failed():
+                procs.stop(list(procs.procs))
+                raise RuntimeError(f'load: {ns} did not start; logs in {work}')
+            time.sleep(0.2)
+    say(f'load: {3 * n_loops} loop nodes and a recorder running')
     time.sleep(2.0)
     cpu0 = {key: _cpu_seconds(pid) for key, pid in pids.items()}
     rec0 = _cpu_seconds(procs.procs['recorder'][0].pid)
@@ -165,13 +166,13 @@ def markdown(base, load, command):
         f'Machine: {machine_description()}. Date: {datetime.date.today().isoformat()}. '
         f'Command: `{command}`.',
         '',
-        f'Table 2.1\'s undershoot loop at a {ts:g} s sample time ({1 / ts:g} Hz) on wall time,',
+        f"Table 2.1's undershoot loop at a {ts:g} s sample time ({1 / ts:g} Hz) on wall time,",
         'three node processes per loop (each saving its state every sample), one recorder for',
         'all of them; measured over a window that starts once every node has acted. Lateness:',
-        'a message\'s send stamp minus its phase instant (all nodes, ms). Missed: samples of',
+        "a message's send stamp minus its phase instant (all nodes, ms). Missed: samples of",
         'the window without a message from a node. Lost: messages the recorder did not get',
-        '(gaps in the publishers\' sequence numbers, over the whole run). CPU:',
-        'the three processes\' CPU time per second, per loop (100 % = one core).',
+        "(gaps in the publishers' sequence numbers, over the whole run). CPU:",
+        "the three processes' CPU time per second, per loop (100 % = one core).",
         '',
         '| run | loops | msgs/s per node | lateness p50 / p99 / max (ms) | within 1 ms | '
         'within Ts/4 | missed | lost | CPU per loop | recorder CPU |',

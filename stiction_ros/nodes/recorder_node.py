@@ -267,7 +267,7 @@ class RecorderNode(Node):
         counts = ', '.join(f'{n}: {t["count"]}' for n, t in self.writer.topics.items())
         print(f'recorder: wrote {self.writer.message_count} messages to '
               f'{self.writer.directory} ({counts}); {self.transport_lost} lost on the way '
-              f'(gaps in the publishers\' sequence numbers), {self.before_match} sent before '
+              f"(gaps in the publishers' sequence numbers), {self.before_match} sent before "
               'the recorder subscribed', file=sys.stderr)
         if self.stopped:
             print(f'recorder: stopped early ({self.stopped}); {self.not_recorded} messages '

@@ -10,6 +10,7 @@ import gc
 import sys
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from stiction_ros.models.base import ModelError
@@ -44,6 +45,11 @@ def run(factory, args=None, prog='node'):
             code = finished.result() if finished.done() else 1
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        # A callback that was running when SIGINT/SIGTERM shut the context down fails
+        # to publish; that is the shutdown, not an error.
+        if rclpy.ok():
+            raise
     finally:
         close = getattr(node, 'close', None)
         if close is not None:

@@ -190,7 +190,7 @@ class SampledNode(Node):
                 slot = self._slot
         if slot < self._slot or k == self.last_k:
             return
-        self._arrive(now)
+        self._arrive(self.get_clock().now().nanoseconds)
         if self.last_k is not None and k > self.last_k + 1:
             self.skipped += k - self.last_k - 1
         self.last_k = k
@@ -314,7 +314,7 @@ class SampledNode(Node):
         sample = None
         if info is not None and not self._sim:
             sample = info['source_timestamp'] // self._ts_ns
-        if guard.check(value, self._steady(), sample):
+        if guard.check(value, time.monotonic(), sample):
             return True
         self.rejected += 1
         self.get_logger().warning(
@@ -337,16 +337,10 @@ class SampledNode(Node):
                                                   self.values['stale_after'])
         return self.input_guards[topic]
 
-    @staticmethod
-    def _steady():
-        return time.monotonic()
-
     def _publish_diagnostics(self):
-        now = self._steady()
+        now = time.monotonic()
         statuses = []
         for topic, guard in self.input_guards.items():
-            guard.limit = self.values['input_limit']
-            guard.stale_after = self.values['stale_after']
             level, message, values = guard.status(now)
             statuses.append(DiagnosticStatus(
                 level=bytes([level]), name=f'{self.get_fully_qualified_name()}: {topic}',
@@ -378,6 +372,9 @@ class SampledNode(Node):
         changes = {p.name: p.value for p in params if p.name in self.values}
         if changes:
             self.values.update(changes)
+            for guard in self.input_guards.values():
+                guard.limit = self.values['input_limit']
+                guard.stale_after = self.values['stale_after']
             self.apply(changes)
             self.get_logger().info(
                 'set ' + ', '.join(f'{k}={v!r}' for k, v in sorted(changes.items())))
