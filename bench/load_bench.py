@@ -46,7 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / 'docs' / 'BENCHMARKS.md'
 START, END = '<!-- load-bench: start -->', '<!-- load-bench: end -->'
 OUTPUT = {'plant': 'pv', 'controller': 'op', 'valve': 'mv'}
-LOST = re.compile(r'(\d+) lost on the way .*?, (\d+) sent before the recorder subscribed')
+LOST = re.compile(r'(\d+) lost on the way .*?\), (\d+) sent before the recorder subscribed')
 TICK = os.sysconf('SC_CLK_TCK')
 
 

@@ -124,8 +124,9 @@ class RecorderNode(Node):
         self._unflushed = 0
         self.stopped = None     # why recording stopped early, if it did
         self.not_recorded = 0
-        self.publishers_of, self.last_seq = {}, {}
-        self.transport_lost = self.before_match = 0
+        self.publishers_of, self.last_seq, self.gaps = {}, {}, {}
+        self.unchecked = set()
+        self.before_match = 0
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.05, self._discover, clock=wall)
         self.create_timer(v['flush_period'], self._flush, clock=wall)
@@ -225,18 +226,30 @@ class RecorderNode(Node):
         return on_message
 
     def _count_sequence(self, name, seq):
-        # The publisher numbers its messages: a jump is a message lost on the way, and a
-        # first number above 1 counts those sent before this subscription matched.
-        if not seq or self.publishers_of.get(name, 0) != 1:
+        # A publisher numbers its messages: a jump is a message lost on the way, and a
+        # first number above 1 counts those sent before this subscription matched.  The
+        # numbers are per publisher and the message info does not say which one sent it,
+        # so a topic that ever has several publishers (or a restarted one) is not checked.
+        if not seq or name in self.unchecked:
             return
         last = self.last_seq.get(name)
+        if self.publishers_of.get(name, 0) != 1 or (last is not None and seq <= last):
+            self.unchecked.add(name)
+            return
         if last is None:
             self.before_match += seq - 1
         elif seq > last + 1:
-            self.transport_lost += seq - last - 1
+            self.gaps[name] = self.gaps.get(name, 0) + seq - last - 1
         self.last_seq[name] = seq
 
+    @property
+    def transport_lost(self):
+        """Return the messages lost on the way, over the topics that could be checked."""
+        return sum(n for name, n in self.gaps.items() if name not in self.unchecked)
+
     def _flush(self):
+        for name in self.subs:
+            self.publishers_of[name] = len(self.get_publishers_info_by_topic(name))
         if self.stopped:
             return
         free = _free_mb(self.writer.directory)
@@ -267,8 +280,9 @@ class RecorderNode(Node):
         counts = ', '.join(f'{n}: {t["count"]}' for n, t in self.writer.topics.items())
         print(f'recorder: wrote {self.writer.message_count} messages to '
               f'{self.writer.directory} ({counts}); {self.transport_lost} lost on the way '
-              f"(gaps in the publishers' sequence numbers), {self.before_match} sent before "
-              'the recorder subscribed', file=sys.stderr)
+              f"(gaps in the publishers' sequence numbers; {len(self.unchecked)} topics with "
+              f'several publishers not checked), {self.before_match} sent before the recorder '
+              'subscribed', file=sys.stderr)
         if self.stopped:
             print(f'recorder: stopped early ({self.stopped}); {self.not_recorded} messages '
                   'received after that were not recorded', file=sys.stderr)
