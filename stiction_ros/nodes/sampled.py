@@ -28,7 +28,7 @@ Degraded inputs: a sample at which the node acts without a new value of an
 input since its previous action (the message was lost, late, or its
 producer is down) acts on the held value; the node says so on
 ``/diagnostics`` and publishes ``held_inputs`` (``diagnostic_msgs/KeyValue``:
-the input topic and the value acted on), which the recorder records and the
+the input topic, and the sample number and the value acted on), which the recorder records and the
 analyzer uses to put the valve's real input in place, or leave the sample
 out.  With ``state_file`` the node saves
 its state after every sample and resumes from it when restarted
@@ -200,10 +200,11 @@ class SampledNode(Node):
         due = k * self._ts_ns + self._slot * self._ts_ns // SLOTS
         self._late.append(self.get_clock().now().nanoseconds - due)
         for topic, guard in self.input_guards.items():
-            if guard.acted(None if self._sim else k):
-                # The value acted on: an analyzer can put it in place of the recorded one.
+            if guard.acted(k):
+                # The sample and the value acted on: an analyzer can put it in place of
+                # the recorded one, at the right sample however late this message is.
                 self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
-                                                value=repr(guard.last_good[1])))
+                                                value=f'{k} {guard.last_good[1]!r}'))
                 self.get_logger().warning(
                     f'acted on a held {topic} ({guard.held} samples so far): a message was '
                     'lost or late', throttle_duration_sec=5.0)
@@ -275,8 +276,19 @@ class SampledNode(Node):
               file=sys.stderr)
 
     def receive(self, topic, value, info=None):
-        """Take an input message: lose or delay it if faults are injected, else use it."""
+        """
+        Take an input message: lose or delay it if faults are injected, else use it.
+
+        The sample it was sent in is noted, so that a value used a sample late is
+        found: on wall time from its send stamp (``info``), on sim time from the
+        clock when it came (the lockstep clock waits for it).
+        """
         v = self.values
+        sample = None
+        if self._sim:
+            sample = self.get_clock().now().nanoseconds // self._ts_ns
+        elif info is not None:
+            sample = info['source_timestamp'] // self._ts_ns
         if v['inject_drop'] > 0.0 and self._inject_rng.random() < v['inject_drop']:
             self.injected['lost'] += 1
             return
@@ -287,33 +299,25 @@ class SampledNode(Node):
             due = self.get_clock().now().nanoseconds + int(wait * 1e9)
             if self._in_flight:
                 due = max(due, self._in_flight[-1][0])   # a reliable link keeps the order
-            self._in_flight.append((due, topic, value, info))
+            self._in_flight.append((due, topic, value, sample))
             self.injected['delayed'] += wait > 0.0
             return
-        if self.accept(topic, value, info):
+        if self.accept(topic, value, sample):
             self.on_input(topic, value)
 
     def _arrive(self, now):
         # Delayed inputs whose time has come arrive just before the node acts.
         while self._in_flight and self._in_flight[0][0] <= now:
-            _, topic, value, info = self._in_flight.popleft()
-            if self.accept(topic, value, info):
+            _, topic, value, sample = self._in_flight.popleft()
+            if self.accept(topic, value, sample):
                 self.on_input(topic, value)
 
     def on_input(self, topic, value):
         """Take a valid value of input ``topic``."""
 
-    def accept(self, topic, value, info=None):
-        """
-        Return True for a usable input; count, warn (throttled) and report otherwise.
-
-        ``info`` (the subscription's message info) dates the value: on wall time
-        its send stamp gives the sample it was sent in, so a late one is found.
-        """
+    def accept(self, topic, value, sample=None):
+        """Return True for a usable input (sent in ``sample``); count, warn and report others."""
         guard = self._guard(topic)
-        sample = None
-        if info is not None and not self._sim:
-            sample = info['source_timestamp'] // self._ts_ns
         if guard.check(value, time.monotonic(), sample):
             return True
         self.rejected += 1

@@ -157,19 +157,32 @@ def _held_marks(topic, stamp_kind, ref, ts, center, phases, k0, n):
     t = (np.asarray(getattr(topic, stamp_kind), dtype=np.int64) - ref) / 1e9
     for stamp, mark in zip(t, marks):
         name = str(mark.key).rsplit('/', 1)[-1]
-        out = PRODUCES.get(name, 'op')
-        k = int(align.bins([stamp], ts, center + phases.get(out, 0.0) * ts)[0]) - k0
+        sample, value = _sample_and_value(str(mark.value))
+        if sample is not None:
+            # The node's own sample number: op of that sample was sent at its half.
+            at = (sample + 0.5) * ts - ref / 1e9
+            k = int(align.bins([at], ts, center)[0]) - k0
+        else:
+            out = PRODUCES.get(name, 'op')
+            k = int(align.bins([stamp], ts, center + phases.get(out, 0.0) * ts)[0]) - k0
         if not 0 <= k < n:
             continue
-        try:
-            value = float(mark.value)
-        except ValueError:
-            value = math.nan
         if name == 'op' and math.isfinite(value):
             used[k] = value
         else:
             mask[k] = True
     return mask, used, None
+
+
+def _sample_and_value(text):
+    """Return (sample number or None, value or NaN) of a ``held_inputs`` value."""
+    parts = text.split()
+    try:
+        if len(parts) == 2:
+            return int(parts[0]), float(parts[1])
+        return None, float(text)
+    except ValueError:
+        return None, math.nan
 
 
 def _prefix(path, bag, namespace):
