@@ -41,7 +41,7 @@ def _nodes(context):
     state = LaunchConfiguration('state_dir').perform(context)
     for name in LOOP_NODES:
         if state:
-            params[name]['state_file'] = os.path.join(state, f'{name}.state.json')
+            params[name]['state_file'] = os.path.join(state, f'{name}.state')
     # A loop node that dies is started again and resumes from its state file, as the
     # loop executable's --respawn does.
     nodes = {name: Node(package='stiction_ros', executable=EXECUTABLES[name], name=name,

@@ -22,6 +22,7 @@ import pytest
 from ros_helpers import start_node, stop, wait_for
 from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.readers.bag_signals import HELD
+from stiction_ros.analysis.record import runs
 from stiction_ros.nodes import state_file
 
 pytestmark = pytest.mark.ros
@@ -44,7 +45,7 @@ def settle(probe, topics, samples=6):
 
 def test_a_killed_valve_resumes_its_position_stick_state_and_direction(probe, tmp_path):
     ns = f'/rv{time.monotonic_ns() % 10**6}'
-    state = tmp_path / 'valve_state.json'
+    state = tmp_path / 'valve.state'
     op = f'{ns}/op'
     twin = start_node('valve', VALVE, namespace=f'{ns}/twin', log_dir=str(tmp_path),
                       extra=['-r', f'op:={op}'])
@@ -87,7 +88,7 @@ def test_a_killed_valve_resumes_its_position_stick_state_and_direction(probe, tm
 
 def test_a_corrupt_state_file_is_set_aside_and_the_valve_starts_afresh(probe, tmp_path):
     ns = f'/rc{time.monotonic_ns() % 10**6}'
-    state = tmp_path / 'valve_state.json'
+    state = tmp_path / 'valve.state'
     state.write_text('{"node": "valve", "sample_time": 0.05, "k": 7, "state": {"model": ')
     valve = start_node('valve', dict(VALVE, state_file=str(state)), namespace=ns,
                        log_dir=str(tmp_path))
@@ -97,7 +98,7 @@ def test_a_corrupt_state_file_is_set_aside_and_the_valve_starts_afresh(probe, tm
         assert probe.values(f'{ns}/mv')[0] == 50.0
     finally:
         assert stop(valve) == 0
-    assert (tmp_path / 'valve_state.json.unusable').exists()
+    assert (tmp_path / 'valve.state.unusable').exists()
     assert 'starting afresh' in (tmp_path / 'valve.log').read_text()
     assert state_file.read(state)['node'] == 'valve'     # a new state since
 
@@ -174,7 +175,7 @@ def test_the_loop_respawns_a_killed_valve_and_the_gap_is_marked_and_left_out(tmp
          '--namespace', ns, '--record', str(bag), '--respawn', '--json',
          str(tmp_path / 'summary.json')], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
         text=True)
-    wait_for(lambda: (Path(f'{bag}.logs') / 'valve.state.json').exists(), timeout=30,
+    wait_for(lambda: (Path(f'{bag}.logs') / 'valve.state').exists(), timeout=30,
              what='the valve running')
     time.sleep(3.0)
     victims = _pids('valve_node', ns)
@@ -193,15 +194,10 @@ def test_the_loop_respawns_a_killed_valve_and_the_gap_is_marked_and_left_out(tmp
     assert held >= 5 and missing.sum() >= 5       # the plant held MV while the valve was down
     pv = record.signals['pv']
     since = np.flatnonzero(~np.isnan(pv))[0]      # the plant may start after the controller
-    gaps = [b - a for a, b in _runs(np.isnan(pv[since:]))]
-    down = max(b - a for a, b in _runs(missing[since:]))
+    gaps = [b - a for a, b in runs(np.isnan(pv[since:]))]
+    down = max(b - a for a, b in runs(missing[since:]))
     print(f'valve down for {down} samples; {held} samples held; pv gaps {gaps}')
     # The plant kept running: at most a few samples skipped at a time (a loaded machine),
     # never the stretch the valve was down.
     assert max(gaps, default=0) < min(10, down / 3)
     assert not record.valid[missing].any()
-
-
-def _runs(mask):
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], np.asarray(mask, int), [0]))))
-    return list(zip(edges[::2], edges[1::2]))

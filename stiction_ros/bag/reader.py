@@ -188,7 +188,7 @@ def read_bag(path):
                     for op, body in frames.records():
                         state.take(file, op, body)
                 except (EOFError, ValueError) as err:
-                    _rescue(file, f, frames.good_end, state, err)
+                    _rescue(file, frames, state, err)
                     raise
         except OSError as err:
             raise BagReadError(f'{file}: cannot read: {err.strerror or err}') from None
@@ -270,7 +270,7 @@ class _ReadState:
 
     def chunk(self, file, chunk):
         """Index a chunk's records in one pass; its messages stay in its buffer."""
-        data = _decompress(file, chunk)
+        data = _decompress(chunk)
         if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
             # None of a damaged chunk's bytes can be trusted, so it is left out whole.
             raise ValueError('its CRC does not match')
@@ -313,7 +313,7 @@ _READERS = {0x03: Schema.read, 0x04: Channel.read, 0x05: Message.read, 0x06: Chu
 
 
 class _Framing:
-    """The records of an MCAP file from the start, and where the last whole one ended."""
+    """The records of an MCAP file, and where the last whole one ended."""
 
     def __init__(self, f):
         self.f = f
@@ -327,25 +327,35 @@ class _Framing:
         Only the framing is checked here: EOFError where the file ends early,
         ValueError where it is not MCAP or a length field is impossible.
         """
-        f = self.f
-        magic = f.read(len(_MAGIC))
+        magic = self.f.read(len(_MAGIC))
         if magic != _MAGIC:
             raise ValueError('no MCAP magic at the start' if magic else 'empty file')
+        if not (yield from self.walk(_READERS, self.size)):
+            raise EOFError('no footer')
+
+    def walk(self, wanted, end):
+        """
+        Yield ``(opcode, body)`` of the ``wanted`` records from here to ``end``.
+
+        Returns True if it stopped at the footer record.
+        """
+        f = self.f
         self.good_end = f.tell()
-        while True:
+        while f.tell() < end:
             head = f.read(9)
             if len(head) < 9:
                 raise EOFError('no footer' if not head else 'file ends inside a record header')
             op = head[0]
             length = int.from_bytes(head[1:], 'little')
-            _check_length(length, self.size - f.tell())
+            _check_length(length, end - f.tell())
             if op == 0x02:
-                return
-            if op not in _READERS:
+                return True
+            if op not in wanted:
                 f.seek(length, 1)
             else:
                 yield op, f.read(length)
             self.good_end = f.tell()
+        return False
 
 
 def _check_length(length, left):
@@ -357,7 +367,7 @@ def _check_length(length, left):
         raise EOFError('file ends inside a record')
 
 
-def _rescue(file, f, after, state, err):
+def _rescue(file, frames, state, err):
     """
     Read the chunks after a break in the framing through the summary's chunk index.
 
@@ -365,8 +375,9 @@ def _rescue(file, f, after, state, err):
     start, but a whole file ends with a footer that points at a summary
     listing every chunk and channel.  Does nothing if there is none.
     """
+    after = frames.good_end
     try:
-        summary = _summary(f)
+        summary = _summary(frames)
     except (EOFError, ValueError, struct.error, OverflowError, McapError):
         return
     if summary is None:
@@ -375,25 +386,24 @@ def _rescue(file, f, after, state, err):
     for op, body in records:
         state.take(file, op, body)
     taken = 0
-    size = os.fstat(f.fileno()).st_size
     for start, length in chunks:
         if start < after:
             continue
         try:
-            _check_length(length - 9, size - start - 9)
+            _check_length(length - 9, frames.size - start - 9)
         except (EOFError, ValueError):
             continue
-        f.seek(start + 9)       # the index's length, not the (perhaps damaged) header's
-        state.take(file, 0x06, f.read(length - 9))
+        frames.f.seek(start + 9)    # the index's length, not the (perhaps damaged) header's
+        state.take(file, 0x06, frames.f.read(length - 9))
         taken += 1
     state.warnings.append(f'{file.name}: unreadable from byte {after} ({_why(err)}); read '
                           f'{taken} chunks after it through the summary index')
 
 
-def _summary(f):
+def _summary(frames):
     """Return the summary's (schema and channel records, chunk (offset, length) list), or None."""
-    size = os.fstat(f.fileno()).st_size
-    footer_at = size - len(_MAGIC) - 29
+    f = frames.f
+    footer_at = frames.size - len(_MAGIC) - 29
     if footer_at < len(_MAGIC):
         return None
     f.seek(footer_at)
@@ -405,20 +415,16 @@ def _summary(f):
         return None
     f.seek(start)
     records, chunks = [], []
-    while f.tell() < footer_at:
-        head = f.read(9)
-        length = int.from_bytes(head[1:], 'little')
-        _check_length(length, footer_at - f.tell())
-        body = f.read(length)
-        if head[0] in (0x03, 0x04):
-            records.append((head[0], body))
-        elif head[0] == 0x08:
+    for op, body in frames.walk((0x03, 0x04, 0x08), footer_at):
+        if op == 0x08:
             index = ChunkIndex.read(ReadDataStream(BytesIO(body)))
             chunks.append((index.chunk_start_offset, index.chunk_length))
+        else:
+            records.append((op, body))
     return records, sorted(chunks)
 
 
-def _decompress(file, chunk):
+def _decompress(chunk):
     size = chunk.uncompressed_size
     if size > RECORD_LIMIT:
         raise ValueError(f'a chunk claims {size} bytes uncompressed, over the '

@@ -37,7 +37,7 @@ MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'val
            'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
 # The node that consumes each loop topic: where its injected faults happen.
 CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
-LINK_KEYS = ('drop', 'delay', 'jitter', 'seed')
+INJECT_KEYS = ('drop', 'delay', 'jitter', 'seed')
 
 
 class LoopError(RuntimeError):
@@ -59,12 +59,12 @@ def parse_inject(items):
         for part in filter(None, spec.split(',')):
             key, sep, value = part.partition('=')
             try:
-                if not sep or key not in LINK_KEYS:
+                if not sep or key not in INJECT_KEYS:
                     raise ValueError
                 faults[key] = int(value) if key == 'seed' else float(value)
             except ValueError:
                 raise ConfigError(f'--inject {item!r}: {part!r} is not one of '
-                                  + ', '.join(f'{k}=NUMBER' for k in LINK_KEYS)) from None
+                                  + ', '.join(f'{k}=NUMBER' for k in INJECT_KEYS)) from None
         out[topic] = faults
     return out
 
@@ -174,7 +174,7 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
             faults.setdefault(CONSUMER[topic], []).extend(
                 a for k, v in spec.items() for a in ('-p', f'inject_{k}:={v}'))
         for name in LOOP_NODES:
-            state = work / f'{name}.state.json'
+            state = work / f'{name}.state'
             state.unlink(missing_ok=True)       # a state of an earlier run is not this run's
             procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg + [
                 '-p', f'state_file:={state}'] + faults.get(name, [])), env)

@@ -80,9 +80,8 @@ class ControllerNode(SampledNode):
         self.pv = None
         self.op_pub = self.create_publisher(Float64, 'op', DATA_QOS)
         self.sp_pub = self.create_publisher(Float64, 'sp', DATA_QOS)
-        self.create_subscription(Float64, 'pv', self._on_pv, DATA_QOS)
-        if v['mode'] == 'closed_loop':
-            self.watch('pv')  # an open-loop controller needs no PV
+        # An open-loop controller needs no PV: it is not reported until it is used.
+        self.add_input('pv', watch=v['mode'] == 'closed_loop')
         self.start()
         self.get_logger().info(f'{v["mode"]} Kc={v["Kc"]} Ti={v["Ti"]} at {self.sample_time} s')
 
@@ -123,9 +122,6 @@ class ControllerNode(SampledNode):
         """Resume the saved controller, so that OP continues without a bump."""
         self.pid.restore(state['pid'])
         self.pv = None if state.get('pv') is None else float(state['pv'])
-
-    def _on_pv(self, msg, info):
-        self.receive('pv', msg.data, info)
 
     def on_input(self, topic, value):
         """Use the newest valid PV."""

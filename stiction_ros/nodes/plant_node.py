@@ -59,8 +59,7 @@ class PlantNode(SampledNode):
         self.mv = None
         self._k = None
         self.pub = self.create_publisher(Float64, 'pv', DATA_QOS)
-        self.create_subscription(Float64, 'mv', self._on_mv, DATA_QOS)
-        self.watch('mv', lag=1)   # the valve publishes MV late in the previous sample
+        self.add_input('mv', lag=1)   # the valve publishes MV late in the previous sample
         self.start()
         self.get_logger().info(
             f'{list(v["num"])}/{list(v["den"])} e^-{v["delay"]}s at {self.sample_time} s')
@@ -79,9 +78,6 @@ class PlantNode(SampledNode):
         self.plant.restore(state['plant'])
         self.mv = None if state.get('mv') is None else float(state['mv'])
         self._k = None if state.get('k') is None else int(state['k'])
-
-    def _on_mv(self, msg, info):
-        self.receive('mv', msg.data, info)
 
     def on_input(self, topic, value):
         """Use the newest valid MV."""

@@ -24,15 +24,14 @@ same grid with a quarter of the wake-ups (82.6 % -> 97-98 % of cycles within
 acts for the next one, and that sample has no message.  ``realtime_priority``
 runs the process under SCHED_FIFO.
 
-Degraded inputs: a sample at which the node acts without a new value of an
-input since its previous action (the message was lost, late, or its
-producer is down) acts on the held value; the node says so on
-``/diagnostics`` and publishes ``held_inputs`` (``diagnostic_msgs/KeyValue``:
-the input topic, and the sample number and the value acted on), which the recorder records and the
-analyzer uses to put the valve's real input in place, or leave the sample
-out.  With ``state_file`` the node saves
-its state after every sample and resumes from it when restarted
-(``state_file.py``).
+Degraded inputs: a sample at which the node acts without a value of an
+input sent in that sample (the message was lost, late, or its producer is
+down) acts on the held value; the node says so on ``/diagnostics`` and
+publishes ``held_inputs`` (``diagnostic_msgs/KeyValue``: the input topic,
+then the sample number and the value acted on), which the recorder records
+and the analyzer uses to put the valve's real input in place, or leave the
+sample out.  With ``state_file`` the node saves its state after every
+sample and resumes from it when restarted (``state_file.py``).
 """
 
 from collections import deque
@@ -48,6 +47,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
 from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
 from stiction_ros.nodes.params import check_choices, declare, Param
@@ -112,10 +112,10 @@ class SampledNode(Node):
         self._late = deque(maxlen=100_000)
         self.rejected = 0
         self.input_guards = {}
-        self.resumed_from = None
+        self._lags = {}
         self._store = None
         self._inject_rng = np.random.default_rng(self.values['inject_seed'])
-        self._in_flight = deque()       # (due ns, topic, value, info), due times in order
+        self._in_flight = deque()       # (due ns, topic, value, sample), due times in order
         self.injected = {'lost': 0, 'delayed': 0}
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._held_pub = self.create_publisher(KeyValue, 'held_inputs', DATA_QOS)
@@ -190,7 +190,8 @@ class SampledNode(Node):
                 slot = self._slot
         if slot < self._slot or k == self.last_k:
             return
-        self._arrive(self.get_clock().now().nanoseconds)
+        if self._in_flight:
+            self._arrive(self.get_clock().now().nanoseconds)
         if self.last_k is not None and k > self.last_k + 1:
             self.skipped += k - self.last_k - 1
         self.last_k = k
@@ -253,7 +254,6 @@ class SampledNode(Node):
         if doc is None:
             return
         self.last_k = doc['k']
-        self.resumed_from = doc['k']
         self.get_logger().info(f'resumed from {path}, saved at sample {doc["k"]}')
 
     def close(self):
@@ -275,7 +275,7 @@ class SampledNode(Node):
               f'early), skipped {self.skipped}{stats}; {self.rejected} inputs rejected{faults}',
               file=sys.stderr)
 
-    def receive(self, topic, value, info=None):
+    def receive(self, topic, value, info):
         """
         Take an input message: lose or delay it if faults are injected, else use it.
 
@@ -284,11 +284,8 @@ class SampledNode(Node):
         clock when it came (the lockstep clock waits for it).
         """
         v = self.values
-        sample = None
-        if self._sim:
-            sample = self.get_clock().now().nanoseconds // self._ts_ns
-        elif info is not None:
-            sample = info['source_timestamp'] // self._ts_ns
+        now = self.get_clock().now().nanoseconds
+        sample = (now if self._sim else info['source_timestamp']) // self._ts_ns
         if v['inject_drop'] > 0.0 and self._inject_rng.random() < v['inject_drop']:
             self.injected['lost'] += 1
             return
@@ -296,7 +293,7 @@ class SampledNode(Node):
         if v['inject_jitter'] > 0.0:
             wait += self._inject_rng.uniform(0.0, v['inject_jitter'])
         if wait > 0.0 or self._in_flight:
-            due = self.get_clock().now().nanoseconds + int(wait * 1e9)
+            due = now + int(wait * 1e9)
             if self._in_flight:
                 due = max(due, self._in_flight[-1][0])   # a reliable link keeps the order
             self._in_flight.append((due, topic, value, sample))
@@ -326,19 +323,29 @@ class SampledNode(Node):
             f'the last good value ({self.rejected} rejected so far)', throttle_duration_sec=5.0)
         return False
 
-    def watch(self, topic, lag=0):
+    def add_input(self, topic, lag=0, watch=True):
         """
-        Report ``topic`` on /diagnostics from now on, stale until its first valid value.
+        Subscribe to the Float64 input ``topic``; its valid values go to :meth:`on_input`.
 
-        ``lag`` is 1 for an input published later in the sample than this node acts
-        (the plant's MV): its newest value is then the previous sample's.
+        Every message passes :meth:`receive` (injected faults, dating) and
+        :meth:`accept` (rejection).  ``lag`` is 1 for an input published later in
+        the sample than this node acts (the plant's MV): its newest value is then
+        the previous sample's.  ``watch`` reports it on /diagnostics from now on
+        (stale until its first valid value); else from its first message.
         """
-        self._guard(topic).lag = lag
+        self.create_subscription(Float64, topic,
+                                 lambda msg, info: self.receive(topic, msg.data, info),
+                                 DATA_QOS)
+        self._lags[topic] = lag
+        if watch:
+            self._guard(topic)
 
     def _guard(self, topic):
+        # Created when the input is watched or first used; from then on it is reported.
         if topic not in self.input_guards:
             self.input_guards[topic] = InputGuard(topic, self.values['input_limit'],
-                                                  self.values['stale_after'])
+                                                  self.values['stale_after'],
+                                                  self._lags.get(topic, 0))
         return self.input_guards[topic]
 
     def _publish_diagnostics(self):

@@ -62,8 +62,7 @@ class ValveNode(SampledNode):
         self.model.reset(y0=self.values['initial_position'])
         self.op = None
         self.pub = self.create_publisher(Float64, 'mv', DATA_QOS)
-        self.create_subscription(Float64, 'op', self._on_op, DATA_QOS)
-        self.watch('op')
+        self.add_input('op')
         self.start()
         self.get_logger().info(f'{self.model!r} at {self.sample_time} s')
 
@@ -113,9 +112,6 @@ class ValveNode(SampledNode):
             self.model.reset(y0=min(max(float(snap['state'][0]), 0.0), 100.0))
         op = state.get('op')
         self.op = None if op is None else float(op)
-
-    def _on_op(self, msg, info):
-        self.receive('op', msg.data, info)
 
     def on_input(self, topic, value):
         """Use the newest valid OP."""

@@ -36,8 +36,6 @@ KEY_VALUE = 'diagnostic_msgs/msg/KeyValue'
 HELD = ('a loop node acted on a held input (a message lost or late, or its sender down): '
         'the plant on an old MV or the controller on an old PV (the valve fits keep these '
         'samples: their OP and MV are right)')
-# The signal a loop node publishes from each input: a hold of op shows in mv, and so on.
-PRODUCES = {'op': 'mv', 'pv': 'op', 'mv': 'pv'}
 # Stamps after this (2001-09-09) are taken as wall-clock time; earlier is sim time.
 EPOCH_LIKE = 1e9
 MAX_SAMPLES = 50_000_000
@@ -115,7 +113,7 @@ def read_bag_record(path, namespace=None, held=True):
     reasons = {}
     held = bag.topics.get(f'{prefix}/held_inputs') if held else None
     if held is not None and held.type == KEY_VALUE and held.count:
-        mask, used, note = _held_marks(held, stamp_kind, ref, ts, center, phases, k0, n)
+        mask, used, note = _held_marks(held, ref, ts, center, k0, n)
         fixed = np.isfinite(used) & np.isfinite(signals['op'])
         if fixed.any():
             signals['op'] = np.where(fixed, used, signals['op'])
@@ -140,49 +138,33 @@ def read_bag_record(path, namespace=None, held=True):
     return record
 
 
-def _held_marks(topic, stamp_kind, ref, ts, center, phases, k0, n):
+def _held_marks(topic, ref, ts, center, k0, n):
     """
-    Read a ``held_inputs`` topic.
+    Read a ``held_inputs`` topic: each mark is ``sample value`` for one input.
 
-    Returns the samples to exclude (a held MV or PV, or a held OP without a
-    readable value), the OP the valve acted on where it held OP (NaN
-    elsewhere), and a note if the topic cannot be read.
+    Returns the samples to exclude (a held MV or PV), the OP the valve acted
+    on where it held OP (NaN elsewhere), and a note if marks cannot be read.
     """
     mask = np.zeros(n, dtype=bool)
     used = np.full(n, np.nan)
     try:
-        marks = topic.decoded()
+        marks = [(str(m.key).rsplit('/', 1)[-1], *str(m.value).split()) for m in topic.decoded()]
+        names = [m[0] for m in marks]
+        samples = np.array([int(m[1]) for m in marks], dtype=np.float64)
+        values = np.array([float(m[2]) for m in marks])
     except Exception as err:  # noqa: B902  (any decoding failure is bad input)
-        return mask, used, f'ignored {topic.name}: cannot decode it ({err})'
-    t = (np.asarray(getattr(topic, stamp_kind), dtype=np.int64) - ref) / 1e9
-    for stamp, mark in zip(t, marks):
-        name = str(mark.key).rsplit('/', 1)[-1]
-        sample, value = _sample_and_value(str(mark.value))
-        if sample is not None:
-            # The node's own sample number: op of that sample was sent at its half.
-            at = (sample + 0.5) * ts - ref / 1e9
-            k = int(align.bins([at], ts, center)[0]) - k0
-        else:
-            out = PRODUCES.get(name, 'op')
-            k = int(align.bins([stamp], ts, center + phases.get(out, 0.0) * ts)[0]) - k0
-        if not 0 <= k < n:
+        return mask, used, f'ignored {topic.name}: cannot read its marks ({err})'
+    # A mark carries the node's sample number; OP of that sample was sent at its half,
+    # so the mark goes where op's own stamps put that sample, however late it was sent.
+    k = align.bins((samples + 0.5) * ts - ref / 1e9, ts, center) - k0
+    for name, i, value in zip(names, k, values):
+        if not 0 <= i < n:
             continue
         if name == 'op' and math.isfinite(value):
-            used[k] = value
+            used[i] = value
         else:
-            mask[k] = True
+            mask[i] = True
     return mask, used, None
-
-
-def _sample_and_value(text):
-    """Return (sample number or None, value or NaN) of a ``held_inputs`` value."""
-    parts = text.split()
-    try:
-        if len(parts) == 2:
-            return int(parts[0]), float(parts[1])
-        return None, float(text)
-    except ValueError:
-        return None, math.nan
 
 
 def _prefix(path, bag, namespace):
