@@ -111,25 +111,36 @@ class Probe:
         return client
 
     @staticmethod
-    def call(future, timeout=10.0):
-        """Wait for a service future (spun by the probe thread); return its result."""
-        end = time.monotonic() + timeout
-        while not future.done():
-            if time.monotonic() > end:
-                raise AssertionError('service call timed out')
-            time.sleep(0.01)
-        return future.result()
+    def call(request, timeout=10.0, tries=3):
+        """
+        Send ``request()`` (it returns a service future) and return its result.
+
+        A response is lost when the server answers before it has matched this
+        client's response reader (a known DDS race, ros2/rmw_fastrtps#390); the
+        request is then sent again, as a user would repeat a ``ros2 param`` call.
+        Parameter requests are idempotent, so a repeat changes nothing.
+        """
+        for attempt in range(tries):
+            future = request()
+            end = time.monotonic() + timeout
+            while not future.done() and time.monotonic() < end:
+                time.sleep(0.01)
+            if future.done():
+                return future.result()
+            print(f'service call unanswered after {timeout} s (try {attempt + 1}/{tries})',
+                  file=sys.stderr)
+        raise AssertionError(f'service call timed out {tries} times')
 
     def set_params(self, client, atomically=False, **values):
         """Set parameters through the standard service; return the SetParametersResult list."""
         params = [Parameter(k, value=v) for k, v in values.items()]
         if atomically:
-            return [self.call(client.set_parameters_atomically(params)).result]
-        return self.call(client.set_parameters(params)).results
+            return [self.call(lambda: client.set_parameters_atomically(params)).result]
+        return self.call(lambda: client.set_parameters(params)).results
 
     def get_params(self, client, *names):
         """Return the current values of parameters through the standard service."""
-        res = self.call(client.get_parameters(list(names)))
+        res = self.call(lambda: client.get_parameters(list(names)))
         return [Parameter.from_parameter_msg(ParamMsg(name=n, value=v)).value
                 for n, v in zip(names, res.values)]
 

@@ -42,8 +42,8 @@ def nodes(probe, tmp_path_factory):
 
 
 def describe(probe, client):
-    names = probe.call(client.list_parameters([], 0)).result.names
-    res = probe.call(client.describe_parameters(list(names)))
+    names = probe.call(lambda: client.list_parameters([], 0)).result.names
+    res = probe.call(lambda: client.describe_parameters(list(names)))
     return {d.name: d for d in res.descriptors if d.name not in ROS_OWN}
 
 
