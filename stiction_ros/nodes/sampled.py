@@ -17,10 +17,15 @@ With ``use_sim_time`` a timer runs at a quarter of ``sample_time`` and the
 node acts in the first quarter-tick of each sample that is at or past its
 phase, so a node started late, or a clock that skips ticks, still acts once
 per sample; the clock source must step in quarter samples (the loop launcher
-sets this).  On wall time the timer ticks once per sample, just after the
-node's phase instant on the system clock, so that all processes share the
-same grid with a quarter of the wake-ups (82.6 % -> 97-98 % of cycles within
-1 ms at 100 Hz, measured); a tick that comes so late that its sample is over
+sets this).  At its action instant the node waits, up to ``input_wait`` wall
+seconds, for each input's first message since it last acted: a message that
+reached the lockstep clock may not have reached this node yet, and a busy
+machine must slow the run down, not change it.
+
+On wall time the timer ticks once per sample, just after the node's phase
+instant on the system clock, so that all processes share the same grid with
+a quarter of the wake-ups (82.6 % -> 97-98 % of cycles within 1 ms at 100 Hz,
+measured); a tick that comes so late that its sample is over
 acts for the next one, and that sample has no message.  ``realtime_priority``
 runs the process under SCHED_FIFO.
 
@@ -94,6 +99,10 @@ class SampledNode(Node):
                   'message, uniform up to this, s (messages stay in order).', 0.0, 60.0),
             Param('inject_seed', 0, 'Seed of the injected faults. Fixed for the run.', 0,
                   2**31 - 1, read_only=True),
+            Param('input_wait', 0.5, 'On sim time: wall seconds to wait at the action instant '
+                  'for an input of this sample that has not come yet (0: act on what is '
+                  "there). Keep it under the sim clock's sync_timeout. Fixed for the run.",
+                  0.0, 60.0, read_only=True),
             Param('state_file', '', 'File the node writes its state to after every sample and '
                   'resumes from when restarted ("": none). Fixed for the run.', read_only=True,
                   constraint='a writable file path, or empty'),
@@ -116,6 +125,10 @@ class SampledNode(Node):
         self._store = None
         self._inject_rng = np.random.default_rng(self.values['inject_seed'])
         self._in_flight = deque()       # (due ns, topic, value, sample), due times in order
+        self._arrived = {}              # topic: messages since the node last acted (any)
+        self._needed = []               # the inputs a sample waits for (watched ones)
+        self._pending = None            # on sim time: the sample waiting for an input
+        self.waited = {'samples': 0, 'gave_up': 0}
         self.injected = {'lost': 0, 'delayed': 0}
         self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._held_pub = self.create_publisher(KeyValue, 'held_inputs', DATA_QOS)
@@ -129,6 +142,10 @@ class SampledNode(Node):
         self.add_post_set_parameters_callback(self._post_set)
         if self._sim:
             self._timer = self.create_timer(self.sample_time / SLOTS, self._tick)
+            self._wait_timer = self.create_timer(max(self.values['input_wait'], 1e-3),
+                                                 self._give_up,
+                                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self._wait_timer.cancel()
         else:
             self._realtime(self.values['realtime_priority'])
             # On wall time one tick per sample, at this node's phase: a quarter of
@@ -188,8 +205,50 @@ class SampledNode(Node):
                 time.sleep(early / 1e9)
                 self.early += 1
                 slot = self._slot
+        if self._pending is not None:
+            if n <= self._pending * SLOTS + self._slot:
+                return                  # the same instant again: still waiting
+            self._give_up()             # the clock moved on: it does not wait for this node
         if slot < self._slot or k == self.last_k:
             return
+        if self._sim and self.values['input_wait'] > 0.0 and self._missing():
+            self._pending = k
+            self.waited['samples'] += 1
+            self._wait_timer.reset()
+            return
+        self._act(k)
+
+    def _missing(self):
+        """
+        Return the inputs with no message since the node last acted.
+
+        The lockstep clock moves on once a message reached it, which is no proof
+        that it reached this node too; waiting for it here makes the result of a
+        sim-time run independent of how busy the machine is.  Each producer
+        publishes once per sample, after this node's previous action, so the
+        message due is the first one since then: counted, not dated, because
+        the clock this node reads when a message comes may be a tick behind or
+        ahead of the producer's.  An input with ``lag`` 1 that has never sent
+        anything is not waited for: at the first sample there is nothing yet.
+        """
+        return [topic for topic in self._needed
+                if not self._arrived.get(topic) and (self._lags[topic] == 0
+                                                     or topic in self._arrived)]
+
+    def _give_up(self):
+        k, self._pending = self._pending, None
+        self._wait_timer.cancel()
+        if k is None or k == self.last_k:
+            return
+        self.waited['gave_up'] += 1
+        self.get_logger().warning(
+            f'sample {k}: no {self._missing()} after waiting; acting on the held value',
+            throttle_duration_sec=5.0)
+        self._act(k)
+
+    def _act(self, k):
+        if self._sim:
+            self._arrived = dict.fromkeys(self._arrived, 0)
         if self._in_flight:
             self._arrive(self.get_clock().now().nanoseconds)
         if self.last_k is not None and k > self.last_k + 1:
@@ -271,6 +330,9 @@ class SampledNode(Node):
         if any(self.injected.values()):
             faults = (f'; injected: {self.injected["lost"]} inputs lost, '
                       f'{self.injected["delayed"]} delayed')
+        if self.waited['samples']:
+            faults += (f'; waited for an input at {self.waited["samples"]} samples, gave up at '
+                       f'{self.waited["gave_up"]}')
         print(f'{self.get_name()}: acted on {self.samples} samples ({held}; {self.early} ticks '
               f'early), skipped {self.skipped}{stats}; {self.rejected} inputs rejected{faults}',
               file=sys.stderr)
@@ -281,11 +343,26 @@ class SampledNode(Node):
 
         The sample it was sent in is noted, so that a value used a sample late is
         found: on wall time from its send stamp (``info``), on sim time from the
-        clock when it came (the lockstep clock waits for it).
+        clock when it came, or as the sample waited for if the node is waiting.
         """
-        v = self.values
         now = self.get_clock().now().nanoseconds
-        sample = (now if self._sim else info['source_timestamp']) // self._ts_ns
+        if not self._sim:
+            self._receive(topic, value, now, info['source_timestamp'] // self._ts_ns)
+            return
+        sample = now // self._ts_ns
+        self._arrived[topic] = self._arrived.get(topic, 0) + 1
+        k = self._pending
+        if k is not None:
+            # The message this node waits for, whatever its clock read when it came.
+            sample = max(sample, k - self._lags.get(topic, 0))
+        self._receive(topic, value, now, sample)
+        if k is not None and not self._missing():
+            self._pending = None
+            self._wait_timer.cancel()
+            self._act(k)
+
+    def _receive(self, topic, value, now, sample):
+        v = self.values
         if v['inject_drop'] > 0.0 and self._inject_rng.random() < v['inject_drop']:
             self.injected['lost'] += 1
             return
@@ -339,6 +416,7 @@ class SampledNode(Node):
         self._lags[topic] = lag
         if watch:
             self._guard(topic)
+            self._needed.append(topic)
 
     def _guard(self, topic):
         # Created when the input is watched or first used; from then on it is reported.

@@ -9,9 +9,12 @@ time, so every node's phase falls on a tick), never faster than ``rtf``.
 Lockstep (``sync``): the clock also never runs ahead of the loop.  Given
 ``['pv@0.25', 'op@0.5', 'mv@0.75']`` (topic and the phase at which its node
 publishes), it moves on only when every message due so far has arrived, or
-after ``sync_timeout`` wall seconds (counted and logged as a stall).  A busy
-machine then slows the run down instead of changing its result: no node
-misses a sample and every message finds its successor's input in place.
+after ``sync_timeout`` wall seconds (counted and logged as a stall).  Each
+loop node in turn waits, at its action instant, for its inputs of that
+sample (``input_wait`` in ``sampled.py``), since a message that reached the
+clock may not have reached them yet.  A busy machine then slows the run down
+instead of changing its result: no node misses a sample or acts on an old
+input.
 
 Before it starts, the clock can wait until given topics have enough
 subscribers (``wait_for: ['op=2', 'mv=2']``), so that no node misses the start.
@@ -56,9 +59,9 @@ class SimClockNode(Node):
                   read_only=True),
             Param('sync_timeout', 1.0, 'Wall seconds to wait for a sync topic before moving on.',
                   0.0, 60.0, read_only=True),
-            # 3 ms: with 1 ms a loaded 2-core machine let a consumer miss a message now
-            # and then (the Table 2.1 live test failed 2 of about 6 full runs).
-            Param('sync_margin', 0.003, 'Wall seconds to wait after the last due sync message '
+            # 0: a loop node waits for its own inputs (input_wait), which no margin here
+            # could promise on a busy machine (3 ms still failed now and then).
+            Param('sync_margin', 0.0, 'Wall seconds to wait after the last due sync message '
                   'arrived, so that it reaches its other subscribers too.', 0.0, 10.0,
                   read_only=True),
             Param('settle', 1.0, 'Wall seconds to wait after the subscribers appear, so that '
