@@ -140,8 +140,9 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
 
     ``rtf`` > 0 runs on a ``/clock`` at that real-time factor (else wall
     time, where ``realtime_priority`` > 0 runs the loop nodes under
-    SCHED_FIFO).  Each loop node keeps its state in the log directory, so
-    with ``respawn`` a loop node that dies after its first seconds is
+    SCHED_FIFO).  With ``respawn`` each loop node keeps its state in the log
+    directory (a file written after every sample, which costs time at high
+    rates, so only then), and one that dies after its first seconds is
     started again and resumes where it was (counted in the ``respawned``
     dict).  ``inject`` (from :func:`parse_inject`) makes the node that uses a
     topic lose and delay its messages (``inject_*`` parameters); the recorder
@@ -174,10 +175,13 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
             faults.setdefault(CONSUMER[topic], []).extend(
                 a for k, v in spec.items() for a in ('-p', f'inject_{k}:={v}'))
         for name in LOOP_NODES:
-            state = work / f'{name}.state'
-            state.unlink(missing_ok=True)       # a state of an earlier run is not this run's
-            procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg + [
-                '-p', f'state_file:={state}'] + faults.get(name, [])), env)
+            keep = []
+            if respawn:
+                state = work / f'{name}.state'
+                state.unlink(missing_ok=True)   # a state of an earlier run is not this run's
+                keep = ['-p', f'state_file:={state}']
+            procs.start(name, node_command(name, namespace, params, sim_arg + rt_arg + keep
+                                           + faults.get(name, [])), env)
         end = None if sim else time.monotonic() + duration + 0.75 * ts
         if sim:
             procs.start('sim_clock', node_command('sim_clock', namespace, params), env)
