@@ -11,14 +11,13 @@ with no message is a gap and is reported, never filled.  Pure numpy: runs on the
 import math
 
 import numpy as np
+from stiction_ros.analysis.readers.bag_signals import EPOCH_LIKE
 from stiction_ros.closed_loop import simulate_loop
 from stiction_ros.limit_cycle import measure_oscillation
 from stiction_ros.ros_params import PHASES
 
 SIGNALS = ('sp', 'op', 'mv', 'pv')
 PUBLISHER = {'sp': 'controller', 'op': 'controller', 'mv': 'valve', 'pv': 'plant'}
-# Time stamps beyond this (s, 2001-09-09) are wall-clock time, earlier ones sim time.
-WALL_CLOCK = 1e9
 
 
 def on_grid(topic, sample_time, phase=0.5):
@@ -51,7 +50,7 @@ def summarise(bag, cfg):
     out['samples'] = {'first': first, 'last': last}
     # On wall time the samples are counted from 1970, and the profiles of the loop
     # file began long before the run: there is no offline run to compare with.
-    wall = last * ts > WALL_CLOCK
+    wall = last * ts > EPOCH_LIKE
     if wall:
         out['offline'] = 'none: a wall-time run'
     offline = simulate_loop(cfg, duration=last * ts) if n and not wall else None

@@ -317,6 +317,9 @@ class SampledNode(Node):
 
     def close(self):
         """Say how many samples the node acted on, and how late (run.py calls this at shutdown)."""
+        if self._store is not None:
+            self._store.close()         # the file stays, for a restart
+            self._store = None
         late = sorted(self._late)
         stats = ''
         if late:
