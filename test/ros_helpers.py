@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 
+from diagnostic_msgs.msg import KeyValue
 from rcl_interfaces.msg import Parameter as ParamMsg
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -103,6 +104,23 @@ class Probe:
     def publish(self, topic, value):
         """Publish one Float64."""
         self.publisher(topic).publish(Float64(data=float(value)))
+
+    def hear(self, topic, value, namespaces, timeout=20.0):
+        """
+        Send ``value`` on ``topic`` until the loop node in each of ``namespaces`` has heard it.
+
+        Our publisher can match a new node before the node knows the publisher, and what is
+        sent in between is lost to that node alone: a valve started with the test missed
+        2.5 s of OP under load, and a restarted one 1 run in 18. ``value`` must be what the
+        node acts on already, so that resending it changes nothing. A node has heard one
+        once it marks a later sample as acted on a held input (``held_inputs``).
+        """
+        heard = set()
+        for ns in namespaces:
+            self.node.create_subscription(KeyValue, f'{ns}/held_inputs',
+                                          lambda _, ns=ns: heard.add(ns), DATA_QOS)
+        wait_for(lambda: self.publish(topic, value) or time.sleep(0.3) or
+                 heard == set(namespaces), timeout, what=f'{namespaces} hearing {topic}')
 
     def params(self, node_name, timeout=20.0):
         """Return a parameter client of ``node_name`` once its services are up."""

@@ -45,7 +45,7 @@ def test_nodes_survive_a_stopped_and_a_backward_clock(probe, tmp_path):
         for _ in range(4 * samples):
             t += TS / 4
             pub.publish(_clock_msg(t))
-            time.sleep(0.005)
+            time.sleep(0.01)
 
     try:
         def all_publish():
@@ -60,8 +60,11 @@ def test_nodes_survive_a_stopped_and_a_backward_clock(probe, tmp_path):
         run_for(30)
         time.sleep(0.5)
         after = {x: len(probe.values(f'{ns}/{x}')) for x in TOPICS.values()}
-        # Once per sample of the new time line (allow a few lost to discovery timing).
-        assert all(after[x] - held[x] >= 25 for x in after), (held, after)
+        # Once per sample of the new time line. A node that waited for the clock to pass the
+        # old time would act in the last 10 samples only; a node kept waiting on an input
+        # by a busy machine lets the clock pass some samples (11 of 30 seen with a CPU hog
+        # when the clock ran at 5x real time; it now runs at 2.5x).
+        assert all(after[x] - held[x] >= 20 for x in after), (held, after)
         assert all(p.poll() is None for p in procs.values())
     finally:
         codes = {name: stop(p) for name, p in procs.items()}

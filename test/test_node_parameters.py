@@ -67,6 +67,7 @@ def test_model_switch_is_bumpless_and_a_new_S_applies_live(probe, valve):
     ns, _ = valve
     client = probe.params(f'{ns}/valve')
     probe.listen(f'{ns}/mv')
+    probe.hear(f'{ns}/op', 50.0, [ns])
 
     def drive(values):
         for v in values:

@@ -17,7 +17,6 @@ import subprocess
 import sys
 import time
 
-from diagnostic_msgs.msg import KeyValue
 import numpy as np
 import pytest
 from ros_helpers import start_node, stop, wait_for
@@ -25,7 +24,6 @@ from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.readers.bag_signals import HELD
 from stiction_ros.analysis.record import runs
 from stiction_ros.nodes import state_file
-from stiction_ros.nodes.sampled import DATA_QOS
 
 pytestmark = pytest.mark.ros
 TS = 0.05
@@ -45,23 +43,6 @@ def settle(probe, topics, samples=6):
     return [latest(probe, t) for t in topics]
 
 
-def hear(probe, op, value, valves):
-    """
-    Send ``value`` on ``op`` until every valve in the ``valves`` namespaces has heard it.
-
-    Our publisher can match a new valve before the valve knows the publisher, and an OP
-    sent in between is lost to that valve alone (seen 1 run in 10 after a restart). The
-    value must be the one each valve already acts on, so resending it changes nothing. A
-    valve has heard one once it marks a later sample as acted on a held OP.
-    """
-    marked = set()
-    for ns in valves:
-        probe.node.create_subscription(KeyValue, f'{ns}/held_inputs',
-                                       lambda m, ns=ns: marked.add(ns), DATA_QOS)
-    wait_for(lambda: probe.publish(op, value) or time.sleep(0.3) or marked == set(valves),
-             what=f'{valves} hearing {op}')
-
-
 def test_a_killed_valve_resumes_its_position_stick_state_and_direction(probe, tmp_path):
     ns = f'/rv{time.monotonic_ns() % 10**6}'
     state = tmp_path / 'valve.state'
@@ -74,7 +55,7 @@ def test_a_killed_valve_resumes_its_position_stick_state_and_direction(probe, tm
     probe.listen(mv)
     probe.listen(mv_twin)
     try:
-        hear(probe, op, 50.0, [ns, f'{ns}/twin'])
+        probe.hear(op, 50.0, [ns, f'{ns}/twin'])
         # Up through a breakaway, then back by less than the stick band: stuck, and the
         # next move down must first overcome S. A fresh valve would know none of that.
         for value in (58.0, 63.0, 60.0):
@@ -93,7 +74,7 @@ def test_a_killed_valve_resumes_its_position_stick_state_and_direction(probe, tm
         wait_for(lambda: len(probe.values(mv)) > dead, what='the restarted valve publishing')
         first = probe.values(mv)[dead]
         assert first == before[0], f'jumped from {before[0]} to {first}'
-        hear(probe, op, 60.0, [ns])
+        probe.hear(op, 60.0, [ns])
 
         for value in (57.0, 55.0, 52.0, 61.0, 66.0, 66.0, 64.0):
             probe.publish(op, value)
