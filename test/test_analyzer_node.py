@@ -50,7 +50,9 @@ def test_verdict_is_published_once_with_key_values_and_the_report_written(
 
 def test_bad_input_publishes_an_error_and_exits_2(diagnostics, tmp_path):
     (tmp_path / 'bad.csv').write_text('t,mv\n0,1\n1,2\n')
-    proc = start_node('analyzer', {'input': str(tmp_path / 'bad.csv'), 'linger': 3.0},
+    # It fails at once, so only its linger is left for our subscription to match the
+    # latched verdict: 3 s was too short with two CPU hogs on the machine.
+    proc = start_node('analyzer', {'input': str(tmp_path / 'bad.csv'), 'linger': 10.0},
                       log_dir=str(tmp_path))
     wait_for(lambda: diagnostics, timeout=60, what='a DiagnosticArray')
     assert finish(proc) == 2
