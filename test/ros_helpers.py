@@ -19,6 +19,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 from stiction_ros.nodes.sampled import DATA_QOS
 
@@ -105,6 +108,13 @@ class Probe:
         """Publish one Float64."""
         self.publisher(topic).publish(Float64(data=float(value)))
 
+    def publish_clock(self, t):
+        """Publish ``/clock`` at ``t`` seconds, as the sim clock does (reliable)."""
+        if '/clock' not in self.pubs:
+            self.pubs['/clock'] = self.node.create_publisher(
+                Clock, '/clock', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self.pubs['/clock'].publish(Clock(clock=Time(nanoseconds=round(t * 1e9)).to_msg()))
+
     def hear(self, topic, value, namespaces, timeout=20.0):
         """
         Send ``value`` on ``topic`` until the loop node in each of ``namespaces`` has heard it.
@@ -116,11 +126,15 @@ class Probe:
         once it marks a later sample as acted on a held input (``held_inputs``).
         """
         heard = set()
-        for ns in namespaces:
-            self.node.create_subscription(KeyValue, f'{ns}/held_inputs',
-                                          lambda _, ns=ns: heard.add(ns), DATA_QOS)
-        wait_for(lambda: self.publish(topic, value) or time.sleep(0.3) or
-                 heard == set(namespaces), timeout, what=f'{namespaces} hearing {topic}')
+        subs = [self.node.create_subscription(KeyValue, f'{ns}/held_inputs',
+                                              lambda _, ns=ns: heard.add(ns), DATA_QOS)
+                for ns in namespaces]
+        try:
+            wait_for(lambda: self.publish(topic, value) or time.sleep(0.3) or
+                     heard == set(namespaces), timeout, what=f'{namespaces} hearing {topic}')
+        finally:
+            for sub in subs:
+                self.node.destroy_subscription(sub)
 
     def params(self, node_name, timeout=20.0):
         """Return a parameter client of ``node_name`` once its services are up."""

@@ -9,9 +9,7 @@ sample of the new time line.
 import time
 
 import pytest
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_helpers import start_node, stop, wait_for
-from rosgraph_msgs.msg import Clock
 
 pytestmark = pytest.mark.ros
 
@@ -22,17 +20,8 @@ NODES = {'plant': {'num': [1.0], 'den': [5.0, 1.0], 'delay': 0.0},
 TOPICS = {'plant': 'pv', 'controller': 'op', 'valve': 'mv'}
 
 
-def _clock_msg(t):
-    msg = Clock()
-    msg.clock.sec = int(t)
-    msg.clock.nanosec = int(round((t - int(t)) * 1e9))
-    return msg
-
-
 def test_nodes_survive_a_stopped_and_a_backward_clock(probe, tmp_path):
     ns = '/clockfault'
-    pub = probe.node.create_publisher(
-        Clock, '/clock', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     for topic in TOPICS.values():
         probe.listen(f'{ns}/{topic}')
     procs = {name: start_node(name, dict(params, sample_time=TS), ns, str(tmp_path),
@@ -44,7 +33,7 @@ def test_nodes_survive_a_stopped_and_a_backward_clock(probe, tmp_path):
         nonlocal t
         for _ in range(4 * samples):
             t += TS / 4
-            pub.publish(_clock_msg(t))
+            probe.publish_clock(t)
             time.sleep(0.01)
 
     try:

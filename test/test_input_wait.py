@@ -16,9 +16,7 @@ import time
 from diagnostic_msgs.msg import KeyValue
 import numpy as np
 import pytest
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_helpers import start_node, stop, wait_for
-from rosgraph_msgs.msg import Clock
 from stiction_ros.models import Kano
 from stiction_ros.nodes.sampled import DATA_QOS
 
@@ -29,18 +27,9 @@ VALVE = {'model': 'kano', 'S': 4.0, 'J': 1.5, 'sample_time': TS, 'initial_positi
 LATE = 0.15         # wall seconds between the action instant and the OP of that sample
 
 
-def _clock(t):
-    msg = Clock()
-    msg.clock.sec = int(t)
-    msg.clock.nanosec = int(round((t - int(t)) * 1e9))
-    return msg
-
-
 @pytest.mark.parametrize('wait', [0.5, 0.0])
 def test_a_late_input_is_waited_for_on_sim_time(probe, tmp_path, wait):
     ns = f'/inwait{int(wait * 10)}'
-    clock = probe.node.create_publisher(
-        Clock, '/clock', QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     marks = []
     probe.node.create_subscription(KeyValue, f'{ns}/held_inputs',
                                    lambda m: marks.append(int(m.value.split()[0])), DATA_QOS)
@@ -60,7 +49,7 @@ def test_a_late_input_is_waited_for_on_sim_time(probe, tmp_path, wait):
             k = k0 + i
             before = len(probe.values(f'{ns}/mv'))
             for slot in range(4):            # up to the valve's action instant, 3/4
-                clock.publish(_clock(k * TS + slot * TS / 4))
+                probe.publish_clock(k * TS + slot * TS / 4)
                 time.sleep(0.005)
             start = time.monotonic()
             time.sleep(LATE)
