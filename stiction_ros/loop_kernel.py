@@ -57,6 +57,25 @@ def valve_step(kind, u1, y1, st, fp, arr, phis, hs, q, jmax):
 
 
 @njit(cache=True)
+def hold_input(u, phi, x, xn, g0, g1, hist, hpos, m, fractional):
+    """
+    Advance the sampled plant one sample with input deviation ``u`` held over it.
+
+    ``hist`` is the ring of the last ``m + 1`` inputs (dead time), the newest
+    at ``hpos``; ``x`` is updated in place (``xn`` is scratch).  Returns the
+    new ring position.
+    """
+    size = m + 1
+    now = u if m == 0 else hist[(hpos + m - 1) % size]
+    older = hist[(hpos + m) % size]
+    plant_advance_into(phi, x, g0, now, g1, older, fractional, xn)
+    x[:] = xn
+    hpos = (hpos - 1) % size
+    hist[hpos] = u
+    return hpos
+
+
+@njit(cache=True)
 def run_loop(k0, k1, sp, op_open, pp, pc, kind, fp, st, arr, phis, hs, q, jmax,
              phi, g0, g1, cvec, dfeed, m, fractional, x, hist, hpos, ps, pv0, mv0,
              dist_t, dist_v, noise, out_op, out_mv, out_pv):
@@ -110,12 +129,7 @@ def run_loop(k0, k1, sp, op_open, pp, pc, kind, fp, st, arr, phis, hs, q, jmax,
         mv = y1[0]
         # Plant update: hold MV over the next sample.
         u = mv - mv0
-        now = u if m == 0 else hist[(hpos + m - 1) % size]
-        older = hist[(hpos + m) % size]
-        plant_advance_into(phi, x, g0, now, g1, older, fractional, xn)
-        x[:] = xn
-        hpos = (hpos - 1) % size
-        hist[hpos] = u
+        hpos = hold_input(u, phi, x, xn, g0, g1, hist, hpos, m, fractional)
         ps[T_LAST] = u
         ps[T_TIME] += ts
         out_op[k] = op

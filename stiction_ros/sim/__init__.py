@@ -1,0 +1,1 @@
+"""Simulated corpora of closed control loops, for training and testing detectors."""

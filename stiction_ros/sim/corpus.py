@@ -1,0 +1,441 @@
+"""
+Labelled closed-loop records for training a stiction detector that reads OP, PV and SP.
+
+A detector trained on textbook limit cycles fails on historian data, where a
+sticky valve often sits still for an hour while integral action ramps OP, and
+where healthy loops cycle from tuning, upstream loads or sensor trouble.  So
+each record draws a plant, a tuning, loads, noise and a valve the way a
+chemical plant's flow, pressure, level and slow quality loops vary, and half
+of the healthy records carry a condition that imitates stiction
+(``LOOK_ALIKES``).  Loads, noise and set points are drawn the same way for
+both labels, so the label shows only through the valve and the look-alikes.
+
+Time constants are drawn in samples (what a historian export shows) and
+converted to seconds.  Everything follows from the seed: ``draw_scenario``
+draws from ``default_rng(seed)``, ``simulate`` draws the signals (loads, set
+point, noise, faults) from ``default_rng([seed, 1])``.
+"""
+
+from dataclasses import asdict, dataclass
+import math
+
+import numpy as np
+from scipy import signal
+
+from stiction_ros.models import create
+from stiction_ros.plant import TransferFunctionPlant
+from stiction_ros.sim.corpus_kernel import loop_matrix, min_damping, QUANTISED, run_corpus_loop
+
+LOOK_ALIKES = ('aggressive_tuning', 'load_cycle', 'integrating_cycle', 'backlash', 'quantised',
+               'pv_quantisation', 'sensor_fault')
+STICTION_VALVES = ('kano', 'choudhury', 'he')
+# Conditions a sticky valve's loop may carry as well (the valve kinds cannot).
+STICTION_EXTRAS = ('aggressive_tuning', 'load_cycle', 'pv_quantisation', 'sensor_fault')
+# Damping-ratio floor of the linearised loop per tuning, and the band an
+# oscillating look-alike is pushed into.
+FLOORS = {'sluggish': 0.45, 'normal': 0.3, 'aggressive': 0.2}
+RINGING = (0.02, 0.15)
+OP_LOW, OP_HIGH = 8.0, 92.0
+OP_JITTER = 2.0     # largest OP noise std (%) that the PV noise may cause
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """
+    One drawn loop; with its seed it fixes the simulated record.
+
+    ``gain`` is PV units per % MV (self-regulating) or PV units per % MV per
+    second (integrating); its sign sets the controller action.
+    """
+
+    seed: int
+    label: bool
+    valve: str
+    S: float
+    J: float
+    quantum: float
+    integrating: bool
+    sample_time: float
+    samples: int
+    gain: float
+    tau: float
+    tau2: float
+    delay: float
+    Kc: float
+    Ti: float
+    tuning: str
+    noise_std: float
+    look_alike: str
+
+    def to_json(self) -> dict:
+        """Return the scenario as a dict of plain JSON types."""
+        return asdict(self)
+
+
+def _logu(rng, lo, hi):
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _pick(rng, options, p=None):
+    return str(options[int(rng.choice(len(options), p=p))])
+
+
+def draw_label(seed: int, balance: float = 0.5) -> bool:
+    """Return the label of ``seed`` in a corpus with a fraction ``balance`` of stiction."""
+    return bool(np.random.default_rng(seed).random() < balance)
+
+
+def plant_model(scenario: Scenario) -> TransferFunctionPlant:
+    """Return the sampled plant of ``scenario`` (exact ZOH, fractional dead time exact)."""
+    den = np.polymul([scenario.tau, 1.0], [scenario.tau2, 1.0])
+    if scenario.integrating:
+        den = np.polymul(den, [1.0, 0.0])
+    return TransferFunctionPlant([scenario.gain], den, delay=scenario.delay,
+                                 sample_time=scenario.sample_time)
+
+
+def pv_scale(scenario: Scenario) -> float:
+    """
+    Return the PV move (PV units) that a 1 % load or MV change typically causes.
+
+    Self-regulating: the steady-state gain.  Integrating: the drift of a 1 %
+    imbalance over half an integral time, roughly the peak deviation the
+    controller lets through.
+    """
+    if scenario.integrating:
+        return abs(scenario.gain) * 0.5 * scenario.Ti
+    return abs(scenario.gain)
+
+
+def _draw_plant(rng, integrating):
+    """Return tau, tau2, delay (samples), |gain| per % (per sample if integrating), noise."""
+    if integrating:
+        if rng.random() < 0.8:     # level: short lag, little dead time, turbulent surface
+            tau, delay = _logu(rng, 0.1, 5.0), (0.0 if rng.random() < 0.5 else rng.uniform(0, 2))
+            tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < 0.15 else 0.0
+            residence, noise = _logu(rng, 10.0, 500.0), _logu(rng, 0.03, 1.5)
+        else:                      # gas holder, header pressure, batch quality
+            tau, delay = _logu(rng, 0.5, 20.0), _logu(rng, 0.5, 8.0)
+            tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < 0.3 else 0.0
+            residence, noise = _logu(rng, 5.0, 300.0), _logu(rng, 0.01, 0.8)
+        return tau, tau2, delay, _logu(rng, 0.2, 5.0) / residence, noise
+    kind = _pick(rng, ('flow', 'pressure', 'slow', 'any'), [0.4, 0.2, 0.15, 0.25])
+    if kind == 'flow':             # faster than the historian: tau under a few samples
+        tau, p2, noise = _logu(rng, 0.1, 3.0), 0.2, _logu(rng, 0.1, 2.5)
+        delay = 0.0 if rng.random() < 0.6 else rng.uniform(0.0, 1.5)
+    elif kind == 'pressure':
+        tau, p2, noise = _logu(rng, 0.5, 15.0), 0.3, _logu(rng, 0.03, 1.0)
+        delay = 0.0 if rng.random() < 0.4 else rng.uniform(0.0, 2.0)
+    elif kind == 'slow':           # temperature, composition: lags in series, dead time
+        tau, p2, noise = _logu(rng, 3.0, 40.0), 0.7, _logu(rng, 0.01, 0.3)
+        delay = _logu(rng, 1.0, 8.0)
+    else:
+        tau, p2, noise = _logu(rng, 0.1, 40.0), 0.4, _logu(rng, 0.01, 2.0)
+        delay = rng.uniform(0.0, 1.0) if rng.random() < 0.5 else _logu(rng, 1.0, 8.0)
+    tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < p2 else 0.0
+    return tau, tau2, delay, _logu(rng, 0.2, 5.0), noise
+
+
+def _tune(rng, tuning, integrating, tau, tau2, delay, gain):
+    """Return SIMC-style Kc and Ti (samples) with a random practitioner's mismatch."""
+    # Half rule for the second lag; half a sample for the hold.
+    if integrating:
+        theta, tau1 = delay + tau + tau2 + 0.5, 0.0
+        ref = theta
+    else:
+        theta, tau1 = delay + 0.5 * tau2 + 0.5, tau + 0.5 * tau2
+        ref = max(theta, 0.25 * tau1)
+    if tuning == 'sluggish':
+        lam = rng.uniform(3.0, 10.0) * max(theta, tau1)
+    elif tuning == 'normal':
+        lam = _logu(rng, 1.0, 3.0) * ref
+    else:
+        lam = rng.uniform(0.2, 0.5) * ref
+    if integrating:
+        kc, ti = 1.0 / (gain * (lam + theta)), 4.0 * (lam + theta)
+    else:
+        kc, ti = tau1 / (gain * (lam + theta)), min(tau1, 4.0 * (lam + theta))
+    return kc * _logu(rng, 0.6, 1.6), ti * _logu(rng, 0.6, 1.6)
+
+
+def _place(plant, sign, kc, ki, floor, ceiling=None):
+    """
+    Return Kc and Kc ts / Ti moved until the linearised loop's damping is acceptable.
+
+    With ``ceiling`` the integral gain first rises until the slow poles ring
+    (too much reset is the commonest cause of an oscillating loop); then the
+    loop is detuned until every pole is damped at least ``floor`` and the
+    near-Nyquist ones at least ``max(floor, 0.3)``.  The third value says
+    whether the slow damping ended at or below ``ceiling``.
+    """
+    def zeta(kc, ki):
+        return min_damping(loop_matrix(plant._phi, plant._g0, plant._g1, plant._c, plant._m,
+                                       plant._fractional, kc, ki, sign))
+    fast_floor = max(floor, 0.3)
+    if ceiling is not None:
+        for _ in range(60):
+            if zeta(kc, ki)[0] <= ceiling or zeta(kc, ki * 1.3)[1] < fast_floor:
+                break
+            ki *= 1.3
+    for _ in range(300):
+        low, high = zeta(kc, ki)
+        if low >= floor and high >= fast_floor:
+            break
+        if high < fast_floor:
+            # Keep Ti: too much gain overall, not too much reset.
+            kc, ki = kc * 0.9, ki * 0.9
+        else:
+            kc, ki = kc * 0.95, ki * 0.95 ** 2
+    low, high = zeta(kc, ki)
+    return kc, ki, ceiling is None or low <= ceiling
+
+
+def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
+    """
+    Draw one loop from ``seed``; ``label`` None draws stiction with probability 1/2.
+
+    Returns
+    -------
+    Scenario
+        Deterministic in ``seed`` (and ``label``).
+
+    """
+    rng = np.random.default_rng(seed)
+    # Always consume the label draw so that the rest of the stream is the same.
+    first = rng.random()
+    label = first < 0.5 if label is None else bool(label)
+    S = J = quantum = 0.0
+    if label:
+        valve = _pick(rng, STICTION_VALVES, [0.4, 0.3, 0.3])
+        S = _logu(rng, 0.3, 10.0)
+        J = S * rng.uniform(0.1, 1.5)
+        look = _pick(rng, STICTION_EXTRAS) if rng.random() < 0.3 else ''
+    else:
+        look = _pick(rng, LOOK_ALIKES) if rng.random() < 0.5 else ''
+        valve = look if look in ('backlash', 'quantised') else 'linear'
+        if look == 'backlash':
+            S = _logu(rng, 0.3, 5.0)
+        elif look == 'quantised':
+            quantum = _logu(rng, 0.1, 1.5)
+    ts = float(_pick(rng, (10.0, 5.0, 1.0), [0.75, 0.1, 0.15]))
+    samples = (int(rng.integers(700, 801)) if rng.random() < 0.45
+               else int(round(_logu(rng, 500.0, 2500.0))))
+    integrating = look == 'integrating_cycle' or rng.random() < 0.3
+    if look == 'aggressive_tuning' or (look == 'integrating_cycle' and rng.random() < 0.5):
+        tuning = 'aggressive'
+    else:
+        tuning = _pick(rng, ('sluggish', 'normal', 'aggressive'),
+                       [0.45, 0.4, 0.15] if integrating else [0.3, 0.5, 0.2])
+    ringing = tuning == 'aggressive' and look in ('aggressive_tuning', 'integrating_cycle')
+    sign = -1.0 if rng.random() < 0.25 else 1.0     # direct-acting loops
+    common = {'seed': int(seed), 'label': bool(label), 'valve': valve, 'S': float(S),
+              'J': float(J), 'quantum': float(quantum), 'integrating': bool(integrating),
+              'sample_time': ts, 'samples': samples, 'tuning': tuning, 'look_alike': look}
+    # Only a plant with lag or dead time to spare rings at the historian's
+    # rate; a ringing look-alike redraws its plant (same stream) until it does.
+    for _ in range(20):
+        tau, tau2, delay, gain, noise = _draw_plant(rng, integrating)
+        kc, ti = _tune(rng, tuning, integrating, tau, tau2, delay, gain)
+        sc = Scenario(**common, gain=float(sign * gain / (ts if integrating else 1.0)),
+                      tau=float(tau * ts), tau2=float(tau2 * ts), delay=float(delay * ts),
+                      Kc=0.0, Ti=1.0, noise_std=0.0)
+        kc, ki, ok = _place(plant_model(sc), sign, kc, kc / ti,
+                            *(RINGING if ringing else (FLOORS[tuning],)))
+        if ok:
+            break
+    sc = _replace(sc, Kc=float(kc), Ti=float(kc / ki * ts))
+    # Nobody runs a loop whose OP jitters by more than a few % from noise alone.
+    return _replace(sc, noise_std=float(min(noise * pv_scale(sc), OP_JITTER / kc)))
+
+
+def _replace(sc, **changes):
+    values = asdict(sc)
+    values.update(changes)
+    return Scenario(**values)
+
+
+def _filtered(x, tau_samples):
+    a = math.exp(-1.0 / tau_samples)
+    b, den = [1.0 - a], [1.0, -a]
+    return signal.lfilter(b, den, x, zi=signal.lfilter_zi(b, den) * x[0])[0]
+
+
+def _periodic(rng, n):
+    """Return a load cycle (% MV): sine, or square or triangle as upstream on/off loops make."""
+    period = _logu(rng, 15.0, 3.0 * n)
+    phase = 2.0 * math.pi * (np.arange(n) / period) + rng.uniform(0.0, 2.0 * math.pi)
+    shape = _pick(rng, ('sine', 'square', 'triangle'), [0.6, 0.2, 0.2])
+    if shape == 'sine':
+        wave = np.sin(phase)
+    elif shape == 'square':
+        wave = np.sign(np.sin(phase))
+    else:
+        wave = 2.0 / math.pi * np.arcsin(np.sin(phase))
+    return _logu(rng, 0.3, 5.0) * wave
+
+
+def _loads(rng, sc, n):
+    """Return the load (% MV equivalent, before its lag): steps, drift and any cycle."""
+    activity = _pick(rng, ('quiet', 'normal', 'busy'), [0.25, 0.5, 0.25])
+    amp = {'quiet': 0.25, 'normal': 1.0, 'busy': 3.0}[activity]
+    load = np.zeros(n)
+    for _ in range(int(rng.integers(0, 2 if activity == 'quiet' else 5))):
+        at = int(rng.uniform(0.05, 0.95) * n)
+        load[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, 0.3, 4.0) * amp
+    if rng.random() < 0.7:
+        # A random walk: feed rates and upstream conditions wander without bound.
+        walk = np.cumsum(rng.standard_normal(n))
+        load += walk * (_logu(rng, 0.3, 4.0) * amp / max(float(np.std(walk)), 1e-9))
+    tuned_cycle = sc.look_alike == 'integrating_cycle' and sc.tuning == 'aggressive'
+    if sc.look_alike == 'load_cycle' or (sc.look_alike == 'integrating_cycle'
+                                         and not tuned_cycle):
+        cycle = _periodic(rng, n)
+        # The cycle is the condition this record is about: other loads stay smaller.
+        load *= min(1.0, float(np.ptp(cycle)) / max(2.0 * float(np.std(load)), 1e-9))
+        load += cycle
+    return _filtered(load - load[0], _logu(rng, 0.3, 30.0))
+
+
+def _set_point(rng, sc, n):
+    """Return set-point moves in % MV equivalent; level loops mostly hold theirs."""
+    moves = np.zeros(n)
+    if rng.random() < (0.2 if sc.integrating else 0.6):
+        for _ in range(int(rng.integers(1, 4))):
+            at = int(rng.uniform(0.05, 0.9) * n)
+            moves[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, 0.5, 8.0)
+    return moves
+
+
+def _measurement(rng, sc, n, scale):
+    """Return additive measurement error, PV resolution and the frozen stretch."""
+    white = rng.standard_normal(n)
+    if rng.random() < 0.35:
+        # Coloured: transmitter damping or process turbulence slower than a sample.
+        white = signal.lfilter([1.0], [1.0, -rng.uniform(0.5, 0.95)], white)
+        white /= max(float(np.std(white)), 1e-12)
+    err = sc.noise_std * white
+    res, frozen = 0.0, (-1, -1)
+    if sc.look_alike == 'pv_quantisation':
+        res = _logu(rng, 0.8, 6.0) * max(sc.noise_std, 0.05 * scale)
+    elif sc.look_alike == 'sensor_fault':
+        fault = _pick(rng, ('spikes', 'drift', 'freeze'))
+        if fault == 'spikes':
+            for _ in range(int(rng.integers(3, 30))):
+                at = int(rng.integers(0, n))
+                err[at:at + int(rng.integers(1, 4))] += (
+                    rng.choice((-1.0, 1.0)) * _logu(rng, 3.0, 15.0)
+                    * max(sc.noise_std, 0.2 * scale))
+        elif fault == 'drift':
+            start = int(rng.uniform(0.0, 0.6) * n)
+            ramp = np.clip((np.arange(n) - start) / max(n - start, 1), 0.0, None)
+            err += rng.choice((-1.0, 1.0)) * _logu(rng, 1.0, 10.0) * scale * ramp
+        else:
+            length = int(_logu(rng, 30.0, 0.4 * n))
+            start = int(rng.integers(int(0.1 * n), max(int(0.9 * n) - length, int(0.1 * n) + 1)))
+            frozen = (start, start + length)
+    return err, res, frozen
+
+
+def _valve(sc, mv0):
+    """Return the valve's loop arguments and state, at rest at ``mv0``."""
+    if sc.valve == 'quantised':
+        kind, fp, arr, phis, hs, q, jmax = create('linear').loop_args()
+        return (QUANTISED, fp, np.zeros(1), arr, phis, hs, q, jmax)
+    if sc.valve == 'backlash':
+        model = create('kano', S=sc.S, J=0.0)
+    elif sc.valve == 'linear':
+        model = create('linear')
+    else:
+        model = create(sc.valve, S=sc.S, J=sc.J)
+    model.reset(y0=mv0)
+    model.step(mv0)
+    kind, fp, arr, phis, hs, q, jmax = model.loop_args()
+    return (kind, fp, model.state, arr, phis, hs, q, jmax)
+
+
+def _run(sc, plant, sp, op_open, pv_load, err, pid, sens, mv0):
+    n = sp.shape[0]
+    out = {k: np.empty(n) for k in ('op', 'mv', 'pv')}
+    kind, fp, st, arr, phis, hs, q, jmax = _valve(sc, mv0)
+    run_corpus_loop(sp, op_open, pv_load, err, pid, sens, kind, fp, st, arr, phis, hs, q, jmax,
+                    sc.quantum, plant._phi, plant._g0, plant._g1, plant._c, plant._m,
+                    plant._fractional, out['op'], out['mv'], out['pv'])
+    return out
+
+
+def simulate(scenario: Scenario) -> dict:
+    """
+    Simulate the closed loop of ``scenario``.
+
+    Returns
+    -------
+    dict
+        Arrays ``t`` (s), ``op`` (%), ``pv`` (as measured), ``sp`` and ``mv``
+        (true valve position, %), each ``scenario.samples`` long.
+
+    """
+    sc = scenario
+    rng = np.random.default_rng([sc.seed, 1])
+    n, ts = sc.samples, sc.sample_time
+    plant = plant_model(sc)
+    mv0 = rng.uniform(20.0, 80.0)
+    if sc.valve == 'quantised':
+        mv0 = sc.quantum * round(mv0 / sc.quantum)
+    pv0 = rng.uniform(10.0, 90.0)
+    scale = pv_scale(sc)
+    sp_mv = _set_point(rng, sc, n)
+    load = _loads(rng, sc, n)
+    # Shrink loads and set-point moves together so that the OP they call for
+    # stays inside the valve's range (a saturated loop teaches nothing).
+    need = (0.0 if sc.integrating else sp_mv) - load
+    room = min((OP_HIGH - mv0) / max(need.max(), 1e-9), (mv0 - OP_LOW) / max(-need.min(), 1e-9))
+    shrink = min(1.0, room)
+    sp_mv, load = sp_mv * shrink, load * shrink
+    if sc.integrating:
+        sp = pv0 + scale * sp_mv
+        pv_load = sc.gain * ts * np.concatenate(([0.0], np.cumsum(load[:-1])))
+    else:
+        sp = pv0 + sc.gain * sp_mv
+        pv_load = sc.gain * load
+    err, res, frozen = _measurement(rng, sc, n, scale)
+    sign = 1.0 if sc.gain > 0 else -1.0
+    pid = np.array([sc.Kc, sc.Kc * ts / sc.Ti, sign, mv0])
+    sens = np.array([pv0, mv0, res, float(frozen[0]), float(frozen[1])])
+    out = _run(sc, plant, sp, np.empty(0), pv_load, err, pid, sens, mv0)
+    return {'t': np.arange(n) * ts, 'op': out['op'], 'pv': out['pv'], 'sp': sp,
+            'mv': out['mv']}
+
+
+def plant_response(scenario: Scenario, mv: np.ndarray, mv0: float = 50.0) -> np.ndarray:
+    """
+    Return the noise-free PV deviation of the open loop driven by ``mv`` (%).
+
+    The compiled loop's own plant path (ideal valve, no loads), for checking
+    the discretisation against a continuous-time simulation.
+    """
+    mv = np.ascontiguousarray(mv, dtype=np.float64)
+    zeros = np.zeros(mv.shape[0])
+    sc = _replace(scenario, valve='linear')
+    pid = np.array([0.0, 0.0, 1.0, mv0])
+    sens = np.array([0.0, mv0, 0.0, -1.0, -1.0])
+    return _run(sc, plant_model(sc), zeros, mv, zeros, zeros, pid, sens, mv0)['pv']
+
+
+def make_corpus(seeds, label_balance: float = 0.5,
+                progress=None) -> tuple[list[Scenario], list[dict]]:
+    """
+    Draw and simulate one record per seed; return the scenarios and the records.
+
+    Each seed's label is drawn from the seed with probability ``label_balance``
+    of stiction (0.5 gives the labels of ``draw_scenario(seed)``);
+    ``progress(done, total)`` is called after each record if given.
+    """
+    seeds = [int(s) for s in seeds]
+    scenarios, records = [], []
+    for i, seed in enumerate(seeds):
+        sc = draw_scenario(seed, draw_label(seed, label_balance))
+        scenarios.append(sc)
+        records.append(simulate(sc))
+        if progress is not None:
+            progress(i + 1, len(seeds))
+    return scenarios, records
