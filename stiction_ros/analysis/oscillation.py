@@ -26,6 +26,9 @@ from scipy import signal
 
 MAX_CROSSINGS = 11
 MIN_CROSSINGS = 5
+# A cycle's shape needs this many samples; a quarter record holds too few cycles.
+MIN_PERIOD_SAMPLES = 10.0
+MAX_PERIOD_FRACTION = 0.25
 
 
 @dataclass
@@ -139,3 +142,24 @@ def detect_oscillation(x, sample_time, band_hz=(None, None), max_lag_fraction=0.
               else f'irregular (r = {r:.3g} <= 1)')
     return OscillationResult(regular, mean * sample_time, float(r), amp, float(n / mean),
                              reason, curves)
+
+
+def period_sanity(period_s: float | None, sample_time: float, samples: int) -> str:
+    """
+    Return '' when an oscillation of ``period_s`` can be resolved, else the reason.
+
+    Shorter than ``MIN_PERIOD_SAMPLES`` samples, a cycle's shape (square,
+    triangular, sticking at the peaks) is lost between samples; longer than
+    a quarter of the record, fewer than four cycles say nothing about its
+    regularity (a daily load cycle in a day's data is one such).
+    """
+    if period_s is None or not np.isfinite(period_s) or period_s <= 0:
+        return ''
+    per = period_s / sample_time
+    if per < MIN_PERIOD_SAMPLES:
+        return (f'cycle of {period_s:.4g} s is only {per:.1f} samples of {sample_time:g} s '
+                f'(at least {MIN_PERIOD_SAMPLES:g} needed to see its shape)')
+    if per > MAX_PERIOD_FRACTION * samples:
+        return (f'cycle of {period_s:.4g} s is longer than a quarter of the record '
+                f'({samples * sample_time:.4g} s): too few cycles to judge')
+    return ''

@@ -3,8 +3,10 @@ Every OP/PV-only stiction signature of one record, in one call.
 
 The oscillation is detected on the control error SP - PV (Thornhill, Huang
 and Zhang 2003, J. Process Control 13, 91-100); its period feeds the
-signatures that need one.  Without a regular oscillation those return
-stiction=None with the reason 'no regular oscillation'; the bicoherence test
+signatures that need one.  Without a regular oscillation, or with one the
+sampling cannot resolve (shorter than 10 samples, longer than a quarter of
+the record: ``oscillation.period_sanity``), those return stiction=None with
+the reason; the bicoherence test
 (Choudhury, Shah and Thornhill 2004, Automatica 40, 1719-1728), Yamashita's
 index and the slip-event test need none and always run.  See each module
 for its paper and thresholds.
@@ -12,7 +14,7 @@ for its paper and thresholds.
 
 import numpy as np
 
-from stiction_ros.analysis.oscillation import as_signal, detect_oscillation
+from stiction_ros.analysis.oscillation import as_signal, detect_oscillation, period_sanity
 from stiction_ros.analysis.signatures import bicoherence as bic
 from stiction_ros.analysis.signatures import ellipse as ell
 from stiction_ros.analysis.signatures import he_curve_fit as he
@@ -50,21 +52,24 @@ def compute_signatures(op, pv, sp, sample_time, integrating=False):
     error = sp - pv
     osc = detect_oscillation(error, sample_time)
     sigs = {}
-    if osc.oscillating:
+    unresolvable = period_sanity(osc.period_s, sample_time, len(pv)) if osc.oscillating else ''
+    if osc.oscillating and not unresolvable:
         period = osc.period_s
         sigs['horch'] = hor.horch(op, pv, sample_time, integrating=integrating)
         sigs['he_curve_fit'] = he.he_curve_fit(op, pv, sample_time, integrating=integrating,
                                                period_s=period)
         sigs['ellipse'] = ell.ellipse(op, pv, sample_time, period_s=period,
                                       integrating=integrating)
+    resolved = osc.oscillating and not unresolvable
     sigs['bicoherence'] = bic.bicoherence(error, sample_time,
-                                          period_s=osc.period_s if osc.oscillating else None)
-    if osc.oscillating:
+                                          period_s=osc.period_s if resolved else None)
+    if resolved:
         sigs['hos_pv_op'] = bic.hos_with_pv_op(sigs['bicoherence'], sigs['ellipse'])
     else:
+        why = (f'oscillation not resolvable: {unresolvable}' if unresolvable
+               else f'no regular oscillation ({osc.reason})')
         for name, (threshold, reference) in NEED_OSCILLATION.items():
-            sigs[name] = Signature(name, None, threshold, None,
-                                   f'no regular oscillation ({osc.reason})', reference)
+            sigs[name] = Signature(name, None, threshold, None, why, reference)
     # Yamashita's index needs no oscillation: slow stick-slip events suffice.
     sigs['yamashita'] = yam.yamashita(op, pv, sample_time, integrating=integrating)
     sigs['slip_events'] = slip.slip_events(op, pv, sp, sample_time, integrating=integrating)
