@@ -10,6 +10,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench', 'bench.*']),
+    # The learned stiction detector (make detector), read by numpy without pickle.
+    package_data={package_name: ['resources/*.npz']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -29,6 +31,7 @@ setup(
             'stiction-study = stiction_ros.cli.study:main',
             'stiction-bag = stiction_ros.cli.bag:main',
             'stiction-analyze = stiction_ros.cli.analyze:main',
+            'stiction-detector = stiction_ros.cli.detector:main',
             # Node executables, as `ros2 run stiction_ros <name>` finds them.
             'controller = stiction_ros.nodes.controller_node:main',
             'valve = stiction_ros.nodes.valve_node:main',

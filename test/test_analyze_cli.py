@@ -145,3 +145,40 @@ def test_truncated_bag_is_analysed_from_its_readable_part(tmp_path):
     assert any('truncated' in n for n in rep['notes'])
     (fit,) = rep['fits']
     assert abs(fit['S'] - 3.47) <= 0.1 and abs(fit['J'] - 1.23) <= 0.1
+
+
+def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
+    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC46005_0902*'))[0]
+    res = analyze(f, '--json', tmp_path / 'r.json', '--html', tmp_path / 'r.html')
+    assert res.returncode == 0, res.stderr
+    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    assert st['answer'] in ('stiction', 'no stiction')
+    assert 0.0 <= st['probability'] <= 1.0
+    assert st['detector']['judgeable']['ok'] and st['evidence']
+    assert 'signature_vote' in st
+    # The terminal line says the answer with its probability; the page shows the evidence.
+    assert f'{st["answer"]} (probability {st["probability"]:.2f})' in res.stdout
+    assert 'Evidence' in (tmp_path / 'r.html').read_text()
+
+
+def test_a_frozen_pv_gets_cannot_tell_with_the_reason(tmp_path):
+    # FIC10112's PV is 3.5e-44 throughout: a dead tag, not a valve.
+    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC10112_0630*'))[0]
+    res = analyze(f, '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    assert st['detected'] is None and st['answer'] == 'cannot tell'
+    assert st['detector']['judgeable']['code'] == 'pv_constant'
+    assert st['apparent_S'] is None and 'PV is constant' in st['reason']
+    assert 'cannot tell (PV is constant' in res.stdout
+
+
+def test_a_damaged_detector_file_is_a_clear_error_exit_3(tmp_path):
+    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC46005_0902*'))[0]
+    bad = tmp_path / 'detector.npz'
+    bad.write_bytes(b'PK\x03\x04 not really a zip')
+    res = analyze(f, '--detector', bad)
+    assert res.returncode == 3
+    assert 'not a readable detector file' in res.stderr and 'Traceback' not in res.stderr
+    res = analyze(f, '--detector', tmp_path / 'absent.npz')
+    assert res.returncode == 3 and 'make detector' in res.stderr

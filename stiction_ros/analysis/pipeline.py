@@ -11,6 +11,7 @@ import re
 
 import numpy as np
 
+from stiction_ros.analysis.detection import detect, Detection, Judgeable
 from stiction_ros.analysis.identify import given_fit, identify, IdentifyError
 from stiction_ros.analysis.record import runs
 from stiction_ros.analysis.verdict import combine
@@ -35,6 +36,7 @@ class Options:
     fit_filter: bool = False
     loop_type: str = 'auto'
     hammerstein: bool = True
+    detector: str | None = None
 
     def __post_init__(self):
         if self.model not in MODEL_CHOICES:
@@ -68,6 +70,7 @@ class Analysis:
     signature_inputs: dict | None = None
     landscape: dict | None = None
     explain_arrays: dict | None = None
+    detection: object = None
 
 
 def is_integrating(record, loop_type):
@@ -188,6 +191,18 @@ def run_hammerstein(held, sample_time, integrating):
     return quantify(held['op'], held['pv'], sample_time, integrating=integrating)
 
 
+def run_detection(record, win, held, integrating, model_path=None):
+    """Return the :class:`Detection` on the signatures' stretch (cannot tell without one)."""
+    if win is None:
+        n = int(np.sum(record.valid))
+        judge = Judgeable(False, 'too_short',
+                          f'too short: no stretch of {MIN_SIGNATURE_SAMPLES} contiguous valid '
+                          f'samples with OP and PV ({n} valid samples in all)')
+        return Detection('cannot tell', None, judge.reason, judge)
+    return detect(held['op'], held['pv'], held['sp'], record.sample_time, integrating,
+                  model_path)
+
+
 def analyze(record, options=None, progress=None):
     """Return the :class:`Analysis` of ``record``."""
     options = options or Options()
@@ -226,9 +241,15 @@ def analyze(record, options=None, progress=None):
             notes.append(f'signatures: {win[2]} isolated invalid samples (runs of at most '
                          f'{MAX_BRIDGE}) hold the previous value so that the signatures see '
                          f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
-    ham = None
-    if win is not None and options.hammerstein and not record.has('mv'):
+    ham = detection = None
+    if not record.has('mv'):
+        detection = run_detection(record, win, held, integrating, options.detector)
+        analysis.detection = detection
+    if (win is not None and options.hammerstein and not record.has('mv')
+            and detection.judge.ok and not detection.period_problem):
+        # Sizing needs what judging needs, and a resolvable cycle if there is
+        # one: an under-sampled limit cycle aliases into a band 10x too wide.
         ham = run_hammerstein(held, record.sample_time, integrating)
-    report['stiction'] = combine(osc, sigs, report['fits'], ham)
+    report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
     report['notes'] = notes
     return analysis

@@ -97,7 +97,12 @@ def render(report, figures):
     """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
     st = report.get('stiction', {})
     verdict = ('STICTION DETECTED' if st.get('detected')
-               else 'no stiction detected' if st.get('detected') is False else 'inconclusive')
+               else 'no stiction detected' if st.get('detected') is False else 'cannot tell')
+    if st.get('probability') is not None:
+        strength = (f'probability of stiction {_num(st["probability"], 3)} (calibrated on '
+                    f'simulated loops)')
+    else:
+        strength = f'score {_num(st.get("score"), 3)} (0 = none, 1 = certain)'
     parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>stiction report: '
              f'{_e(report.get("name") or report["input"].get("path"))}</title>'
              f'<style>{STYLE}</style></head><body>',
@@ -106,9 +111,14 @@ def render(report, figures):
              f'({_e(report["input"].get("format"))}); {report["samples"]} samples at '
              f'{_num(report["sample_time"])} s, {report["valid_samples"]} valid; signals: '
              f'{_e(", ".join(report["signals"]))}; {_e(report.get("loop_type", ""))} loop.</p>',
-             f'<p class="verdict">{verdict} &mdash; score {_num(st.get("score"), 3)}'
-             f' (0 = none, 1 = certain); apparent S {_num(st.get("apparent_S"), 3)} %</p>',
+             f'<p class="verdict">{verdict} &mdash; {strength}; apparent S '
+             f'{_num(st.get("apparent_S"), 3)} %</p>',
              f'<p>{_e(st.get("reason", ""))}</p>']
+    if st.get('size_withheld'):
+        parts.append(f'<p>No size is given: {_e(st["size_withheld"])}</p>')
+    if st.get('evidence'):
+        parts += ['<h2>Evidence (which test saw what, and when)</h2><ul>',
+                  *[f'<li>{_e(ev)}</li>' for ev in st['evidence']], '</ul>']
     if report.get('fits'):
         rows = [[_e(f['model']), _num(f['S']), _num(f['J']), _num(f['mse']), _e(f['source']),
                  _e(f.get('S_interval', '-')), _e(f.get('J_interval', '-'))]

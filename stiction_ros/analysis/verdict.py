@@ -59,21 +59,48 @@ def from_signatures(osc, sigs, weights=None, threshold=None):
     return score >= threshold, score, f'signatures: {said} (score {score:.2f})'
 
 
-def combine(osc, sigs, fits, hammerstein=None):
-    """Return the report's ``stiction`` section."""
+ANSWER = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
+
+
+def combine(osc, sigs, fits, hammerstein=None, detection=None):
+    """
+    Return the report's ``stiction`` section.
+
+    With fits (a measured MV) the fits decide; otherwise ``detection`` (the
+    learned detector's :class:`Detection`) does, and the rule-based vote of
+    :func:`from_signatures` is kept beside it as ``signature_vote``.  A size
+    is given only when the record can be judged and any oscillation in it
+    is resolvable.
+    """
     apparent = None
     ell = sigs.get('ellipse')
-    if ell is not None and ell.value is not None:
+    sized = detection is None or (detection.judge.ok and not detection.period_problem)
+    if ell is not None and ell.value is not None and sized:
         apparent = ell.value
+    extra = {}
     if fits:
         detected, score, size, why = from_fits(fits)
         apparent = size
     else:
-        detected, score, why = from_signatures(osc, sigs)
-        if hammerstein is not None and getattr(hammerstein, 'reliable', False):
+        vote = from_signatures(osc, sigs)
+        extra['signature_vote'] = {'detected': vote[0], 'score': round(float(vote[1]), 4),
+                                   'reason': vote[2]}
+        if detection is not None:
+            detected, why = detection.detected, detection.reason
+            score = detection.probability if detection.probability is not None else 0.0
+            extra['detector'] = detection.to_json()
+            if not sized:
+                extra['size_withheld'] = (detection.period_problem or detection.judge.reason)
+        else:
+            detected, score, why = vote
+        if hammerstein is not None and getattr(hammerstein, 'reliable', False) and sized:
             apparent = hammerstein.S
-    out = {'detected': detected, 'score': round(float(score), 4), 'apparent_S': apparent,
-           'reason': why,
+    out = {'detected': detected, 'answer': ANSWER[detected],
+           'probability': (detection.probability if detection is not None and not fits
+                           else None),
+           'score': round(float(score), 4), 'apparent_S': apparent,
+           'reason': why, 'evidence': (detection.evidence if detection is not None and not fits
+                                       else []), **extra,
            'oscillation': osc.to_json() if osc is not None else None,
            'signatures': {n: s.to_json() for n, s in sigs.items()}}
     if hammerstein is not None:

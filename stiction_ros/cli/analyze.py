@@ -25,11 +25,14 @@ import time
 
 import numpy as np
 
+from stiction_ros.analysis.detection.model_file import DetectorFileError
 from stiction_ros.analysis.identify import IdentifyError
 from stiction_ros.analysis.record import InputError
 
 EXIT_INPUT = 2
-VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'inconclusive'}
+# The learned detector's model file is missing or damaged: the install, not the input.
+EXIT_DETECTOR = 3
+VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
 
 
 def _jsonable(x):
@@ -70,6 +73,9 @@ def parser():
     p.add_argument('--loop-type', default='auto',
                    choices=('auto', 'self-regulating', 'integrating'),
                    help='auto: integrating when the tag names a level loop (LIC)')
+    p.add_argument('--detector', metavar='FILE', default=None,
+                   help='learned stiction detector model file (default: the shipped one, '
+                        'rebuilt by `make detector`)')
     p.add_argument('--no-hammerstein', action='store_true',
                    help='skip the Hammerstein quantification of S and J from OP and PV')
     p.add_argument('--explain', action='store_true',
@@ -99,7 +105,8 @@ def _forwarded(args):
     # Each worker is one process already: its --explain runs on one thread.
     argv = ['--model', args.model, '--loop-type', args.loop_type,
             '--holdout', repr(args.holdout), '--bootstrap', str(args.bootstrap), '--jobs', '1']
-    for flag, value in (('--S', args.S), ('--J', args.J), ('--namespace', args.namespace)):
+    for flag, value in (('--S', args.S), ('--J', args.J), ('--namespace', args.namespace),
+                        ('--detector', getattr(args, 'detector', None))):
         if value is not None:
             argv += [flag, str(value)]
     if args.window:
@@ -159,7 +166,8 @@ def run_analysis(args, say):
     from stiction_ros.analysis.readers import load_record
     t0 = time.perf_counter()
     options = Options(model=args.model, S=args.S, J=args.J, fit_filter=args.fit_filter,
-                      loop_type=args.loop_type, hammerstein=not args.no_hammerstein)
+                      loop_type=args.loop_type, hammerstein=not args.no_hammerstein,
+                      detector=getattr(args, 'detector', None))
     say(f'reading {args.input}')
     record = load_record(args.input, namespace=args.namespace,
                          window=tuple(args.window) if args.window else None)
@@ -240,8 +248,18 @@ def summary_line(report):
     word = VERDICT_WORDS[st['detected']]
     fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                      for f in report['fits'])
-    line = f'{report.get("name") or report["input"].get("path")}: {word} (score ' \
-           f'{st["score"]:.2f})' + (f'; {fits}' if fits else '')
+    if st.get('probability') is not None:
+        how = f'probability {st["probability"]:.2f}'
+    elif st['detected'] is None:
+        how = st.get('reason', '')
+    else:
+        how = f'score {st["score"]:.2f}'
+    line = (f'{report.get("name") or report["input"].get("path")}: {word} ({how})'
+            + (f'; {fits}' if fits else ''))
+    for ev in st.get('evidence', [])[:2]:
+        line += f'\n  evidence: {ev}'
+    if st.get('size_withheld'):
+        line += f'\n  no size given: {st["size_withheld"]}'
     if 'mismatch' in report:
         m, b = report['mismatch'], report['baseline']
         line += f'\nplain model: kano S={b["S"]:.3f} J={b["J"]:.3f} MSE fit {b["mse_fit"]:.4g}'
@@ -275,6 +293,9 @@ def main(argv=None):
     except (InputError, IdentifyError, ValueError, OSError) as exc:
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)
         return EXIT_INPUT
+    except DetectorFileError as exc:
+        print(f'stiction-analyze: error: {exc}', file=sys.stderr)
+        return EXIT_DETECTOR
     print(summary_line(report))
     return 0
 

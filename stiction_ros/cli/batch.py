@@ -77,6 +77,7 @@ def analyze_one(path, argv, out_dir=None, root='.'):
     Runs in a worker process or on a Dask worker, so it returns plain data and
     never raises for a bad recording.
     """
+    from stiction_ros.analysis.detection.model_file import DetectorFileError
     from stiction_ros.analysis.identify import IdentifyError
     from stiction_ros.cli.analyze import parser, run, summary_line, to_json_text, write_text
     t0 = time.perf_counter()
@@ -85,7 +86,7 @@ def analyze_one(path, argv, out_dir=None, root='.'):
         args = parser().parse_args([str(path), *argv])
         args.json_path = args.html_path = None
         report = run(args, lambda msg: None)
-    except (InputError, IdentifyError, ValueError, OSError) as exc:
+    except (InputError, IdentifyError, ValueError, OSError, DetectorFileError) as exc:
         row['error'] = str(exc)
     else:
         st = report['stiction']

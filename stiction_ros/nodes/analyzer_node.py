@@ -19,6 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from stiction_ros.analysis.detection.model_file import DetectorFileError
 from stiction_ros.analysis.identify import IdentifyError
 from stiction_ros.analysis.record import InputError
 from stiction_ros.nodes.params import declare, Param
@@ -33,18 +34,22 @@ def level_of(report, error_s):
     st = report['stiction']
     sizes = [f['S'] for f in report['fits']] or [st.get('apparent_S') or 0.0]
     if st['detected'] is None:
-        return DiagnosticStatus.WARN, 'inconclusive: ' + st.get('reason', '')
+        return DiagnosticStatus.WARN, 'cannot tell: ' + st.get('reason', '')
     if not st['detected']:
         return DiagnosticStatus.OK, 'no stiction detected'
     size = max(s for s in sizes if s is not None)
     level = DiagnosticStatus.ERROR if size >= error_s else DiagnosticStatus.WARN
+    if st.get('probability') is not None:
+        return level, (f'stiction detected (probability {st["probability"]:.2f}'
+                       + (f', S about {size:.2f} %)' if size else ')'))
     return level, f'stiction detected (score {st["score"]:.2f}, S about {size:.2f} %)'
 
 
 def key_values(report):
     """Return the key values of the diagnostic: score, S, J and MSE per fitted model."""
     st = report['stiction']
-    kv = [('detected', st['detected']), ('score', f'{st["score"]:.3f}'),
+    kv = [('detected', st['detected']), ('answer', st.get('answer')),
+          ('probability', st.get('probability')), ('score', f'{st["score"]:.3f}'),
           ('apparent_S', st.get('apparent_S')), ('samples', report['samples'])]
     for f in report['fits']:
         kv += [(f'{f["model"]}.S', f'{f["S"]:.2f}'), (f'{f["model"]}.J', f'{f["J"]:.2f}'),
@@ -90,7 +95,7 @@ class AnalyzerNode(Node):
                                   hardware_id=v['input'])
         try:
             report = self._report()
-        except (InputError, IdentifyError, ValueError, OSError) as exc:
+        except (InputError, IdentifyError, ValueError, OSError, DetectorFileError) as exc:
             self.get_logger().error(f'cannot analyse {v["input"]!r}: {exc}')
             status.level, status.message = DiagnosticStatus.ERROR, f'cannot analyse: {exc}'
             code = 2

@@ -1,0 +1,156 @@
+"""
+Simulated records as detector features: the training, calibration and test sets.
+
+A record is drawn and simulated from its seed alone (``stiction_ros.sim.corpus``),
+so a set is fully described by its seed range: training, calibration and
+scoring sets never share a seed.  Records the detector would answer
+``cannot tell`` on are left out of training, as they are at run time.
+"""
+
+from concurrent.futures import ProcessPoolExecutor
+import hashlib
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+
+from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
+from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
+from stiction_ros.analysis.verdict import from_signatures
+
+# Stiction whose footprint on PV is below the noise (ratio) counts as hidden.
+MIN_FOOTPRINT = 1.0
+FOOTPRINT_WINDOW = 10
+# Seed ranges: tuning looked at TRAIN and CALIBRATION only; TEST is scored once.
+TRAIN = range(0, 4500)
+CALIBRATION = range(100_000, 101_500)
+TEST = range(500_000, 502_000)
+
+
+def stiction_footprint(sc, rec: dict) -> float:
+    """
+    Return how far above the PV noise the valve's stiction shows in PV (a ratio).
+
+    The plant is driven once by the sticky valve's true position and once by
+    OP itself (the same valve without friction); the difference is all the
+    stiction left in PV.  For an integrating plant it is read as the change
+    over ``FOOTPRINT_WINDOW`` samples, since the level integrates it.
+    """
+    from stiction_ros.sim.corpus import plant_response
+    f = (plant_response(sc, rec['mv'])
+         - plant_response(sc, np.clip(rec['op'], 0.0, 100.0)))
+    noise = max(sc.noise_std, 1e-12)
+    if sc.integrating:
+        w = FOOTPRINT_WINDOW
+        return float(np.std(f[w:] - f[:-w]) / (noise * np.sqrt(2.0)))
+    return float(np.std(f - f.mean()) / noise)
+
+
+def featurize_seed(seed: int) -> tuple:
+    """
+    Return (seed, features or None, label, kind, judge code, old rule) of one simulated record.
+
+    ``kind`` is the look-alike or the valve; ``old rule`` is the signature
+    vote the analyzer used before the learned detector (for the baseline).
+    """
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(seed)
+    rec = simulate(sc)
+    kind = sc.look_alike or sc.valve
+    if sc.label and stiction_footprint(sc, rec) < MIN_FOOTPRINT:
+        # Stiction buried under the PV noise is in no OP/PV record to find;
+        # scoring it would measure luck.  Counted, never trained or scored.
+        return seed, None, sc.label, kind, 'stiction_hidden', False
+    judge = judgeable(rec['op'], rec['pv'], sc.sample_time)
+    if not judge.ok:
+        return seed, None, sc.label, kind, judge.code, False
+    vec, ev = extract(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
+    osc = ev['oscillation']
+    judge = cycle_judgeable(osc.oscillating, osc.period_s, sc.sample_time)
+    if not judge.ok:
+        return seed, None, sc.label, kind, judge.code, False
+    old = from_signatures(ev['oscillation'], ev['signatures'])[0]
+    return seed, vec, sc.label, kind, '', bool(old)
+
+
+# The code a record's features depend on: a cached set is reused only while
+# every one of these files is unchanged.
+SOURCES = ('analysis/detection/features.py', 'analysis/detection/stuck.py',
+           'analysis/detection/resolve.py', 'analysis/detection/dataset.py',
+           'analysis/oscillation.py', 'analysis/hammerstein.py', 'analysis/verdict.py',
+           'analysis/signatures', 'sim', 'models', 'plant.py', 'loop_kernel.py')
+
+
+def code_version() -> str:
+    """Return a hash of the sources the features depend on (for the cache)."""
+    root = Path(__file__).resolve().parents[2]
+    h = hashlib.sha256()
+    for rel in SOURCES:
+        p = root / rel
+        for f in sorted(p.rglob('*.py')) if p.is_dir() else [p]:
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def build(seeds: range, jobs: int = 1, progress: bool = True,
+          cache: str | Path | None = None) -> dict:
+    """
+    Return the features of ``seeds``: ``x``, ``y``, ``seed``, ``kind``, ``old_rule``, skips.
+
+    ``jobs`` > 1 spreads the seeds over worker processes; the result is
+    the same whatever ``jobs`` is (each record depends on its seed only).
+    ``cache``: a folder where the set is kept under its seed range and the
+    code's hash, and read back instead of recomputed while both match.
+    """
+    path = None
+    if cache is not None:
+        path = Path(cache) / f'features_{seeds.start}_{seeds.stop}_{code_version()}.npz'
+        if path.is_file():
+            with np.load(path, allow_pickle=False) as z:
+                out = {k: z[k] for k in z.files}
+            codes, counts = out.pop('skip_codes').tolist(), out.pop('skip_counts').tolist()
+            seconds = float(out.pop('seconds'))
+            return {**out, 'skipped': dict(zip(codes, counts)), 'seconds': seconds}
+    result = _compute(list(seeds), jobs, progress)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {k: v for k, v in result.items() if k not in ('skipped', 'seconds')}
+        np.savez_compressed(path, **arrays, seconds=np.array(result['seconds']),
+                            skip_codes=np.array(list(result['skipped']), dtype=str),
+                            skip_counts=np.array(list(result['skipped'].values()), dtype=int))
+    return result
+
+
+def _compute(seeds: list, jobs: int, progress: bool) -> dict:
+    out = []
+    t0 = time.perf_counter()
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as pool:
+            for i, r in enumerate(pool.map(featurize_seed, seeds, chunksize=50), 1):
+                out.append(r)
+                _tick(progress, i, len(seeds), t0)
+    else:
+        for i, s in enumerate(seeds, 1):
+            out.append(featurize_seed(s))
+            _tick(progress, i, len(seeds), t0)
+    kept = [r for r in out if r[1] is not None]
+    skipped = {}
+    for r in out:
+        if r[1] is None:
+            skipped[r[4]] = skipped.get(r[4], 0) + 1
+    x = (np.vstack([r[1] for r in kept]) if kept
+         else np.empty((0, len(FEATURE_NAMES))))
+    return {'x': x, 'y': np.array([r[2] for r in kept], dtype=bool),
+            'seed': np.array([r[0] for r in kept], dtype=np.int64),
+            'kind': np.array([r[3] for r in kept]),
+            'old_rule': np.array([r[5] for r in kept], dtype=bool), 'skipped': skipped,
+            'seconds': time.perf_counter() - t0}
+
+
+def _tick(progress: bool, i: int, n: int, t0: float) -> None:
+    if progress and (i % 200 == 0 or i == n):
+        rate = i / max(time.perf_counter() - t0, 1e-9)
+        print(f'\r  features: {i}/{n} records ({rate:.0f}/s)', end='' if i < n else '\n',
+              file=sys.stderr, flush=True)

@@ -1,0 +1,120 @@
+"""
+The detector's answer on one record: stiction, no stiction, or cannot tell.
+
+First the record must be judgeable (:mod:`resolve`); if not, the answer is
+``cannot tell`` with the reason.  Otherwise the learned model turns the
+feature vector into a calibrated probability, and the answer is
+``stiction`` at ``THRESHOLD`` or above.  The evidence says which test saw
+what and where in time, so the engineer can check the claim on the trend.
+"""
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from stiction_ros.analysis.detection import model_file
+from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
+from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
+
+THRESHOLD = 0.5
+ANSWERS = ('stiction', 'no stiction', 'cannot tell')
+VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
+
+
+@dataclass
+class Detection:
+    """The answer, its calibrated probability and the evidence behind it."""
+
+    answer: str
+    probability: float | None
+    reason: str
+    judge: Judgeable
+    evidence: list = field(default_factory=list)
+    features: dict = field(default_factory=dict)
+    period_problem: str = ''
+    model: dict = field(default_factory=dict)
+    details: dict = field(default_factory=dict)
+
+    @property
+    def detected(self) -> bool | None:
+        """Return True/False for stiction/no stiction, None when it cannot tell."""
+        return None if self.answer == 'cannot tell' else self.answer == 'stiction'
+
+    def to_json(self) -> dict:
+        """Return the JSON-able answer (features rounded, no arrays)."""
+        return {'answer': self.answer, 'probability': self.probability, 'reason': self.reason,
+                'judgeable': self.judge.to_json(), 'evidence': self.evidence,
+                'period_problem': self.period_problem or None,
+                'features': {k: (None if not np.isfinite(v) else round(float(v), 5))
+                             for k, v in self.features.items()},
+                'model': self.model, **self.details}
+
+
+@lru_cache(maxsize=4)
+def _model(path: str | None) -> model_file.TreeModel:
+    return model_file.load(path, FEATURE_NAMES)
+
+
+def load_model(path: str | None = None) -> model_file.TreeModel:
+    """Return the detector model at ``path`` (default: the shipped one), loaded once."""
+    return _model(None if path is None else str(path))
+
+
+def _t(k: int, ts: float) -> str:
+    return f'{k * ts:.0f} s'
+
+
+def evidence_lines(ev: dict, ts: float) -> list:
+    """Return the evidence as sentences: which test saw what, where in time."""
+    out = []
+    st = ev['stuck']
+    for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:
+        out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled {travel:.3g} while the '
+                   f'valve proxy stayed within its noise')
+    for k, z in sorted(st.slips, key=lambda s: -s[1])[:3]:
+        out.append(f'slip at {_t(k, ts)}: the valve proxy jumped {z:.1f} noise widths '
+                   f'(no set-point step before it)')
+    osc = ev['oscillation']
+    if osc.oscillating and ev['period_problem']:
+        out.append(f'oscillation not voted on: {ev["period_problem"]}')
+    elif osc.oscillating:
+        out.append(f'regular oscillation of the error: period {osc.period_s:.4g} s '
+                   f'({osc.period_s / ts:.1f} samples), regularity {osc.regularity:.2f}')
+    for name in VOTERS:
+        s = ev['signatures'].get(name)
+        if s is not None and s.stiction is not None:
+            if ev['period_problem'] and name in ('horch', 'he_curve_fit', 'hos_pv_op'):
+                continue
+            out.append(f'{name}: {"stiction" if s.stiction else "no stiction"} ({s.reason})')
+    return out
+
+
+def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: float,
+           integrating: bool = False, model_path: str | None = None) -> Detection:
+    """
+    Return the :class:`Detection` of one contiguous stretch of OP, PV (and SP).
+
+    Raises :class:`model_file.DetectorFileError` when the model file is
+    missing or damaged (never a silent fallback).
+    """
+    model = load_model(model_path)
+    judge = judgeable(op, pv, sample_time)
+    info = {'file': model.meta.get('file', ''), 'version': model.meta.get('version'),
+            'trained_on': model.meta.get('trained_on', '')}
+    if not judge.ok:
+        return Detection('cannot tell', None, judge.reason, judge, model=info)
+    vec, ev = extract(op, pv, sp, sample_time, integrating)
+    osc = ev['oscillation']
+    judge = cycle_judgeable(osc.oscillating, osc.period_s, sample_time)
+    if not judge.ok:
+        return Detection('cannot tell', None, judge.reason, judge,
+                         evidence_lines(ev, sample_time), ev['features'],
+                         ev['period_problem'], info)
+    p = float(model.probability(vec)[0])
+    answer = 'stiction' if p >= THRESHOLD else 'no stiction'
+    reason = (f'learned detector: probability of stiction {p:.2f} '
+              f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
+    return Detection(answer, round(p, 4), reason, judge, evidence_lines(ev, sample_time),
+                     ev['features'], ev['period_problem'], info,
+                     {'stuck': ev['stuck'].to_json(sample_time)})

@@ -1,0 +1,155 @@
+"""
+The learned detector's file: gradient-boosted trees and their calibration, without pickle.
+
+The classifier is trained with scikit-learn (``stiction_ros.analysis.detection.train``)
+but shipped as plain arrays in a NumPy ``.npz``: each tree's split feature,
+threshold, children, leaf value and where a missing value goes, plus the
+isotonic calibration map from raw score to probability.  Loading never
+unpickles anything (the security test bans it) and needs no scikit-learn;
+:func:`load` checks every array's type, shape and cross-reference and a
+SHA-256 of the content, so a missing, truncated or edited file is a
+:class:`DetectorFileError` naming what is wrong, never a wrong answer.
+"""
+
+from dataclasses import dataclass
+import hashlib
+import json
+from pathlib import Path
+import zipfile
+
+import numpy as np
+
+FORMAT = 'stiction_ros.detector'
+VERSION = 1
+ARRAYS = {'feature': np.int32, 'threshold': np.float64, 'left': np.int32, 'right': np.int32,
+          'value': np.float64, 'missing_left': np.uint8, 'is_leaf': np.uint8,
+          'tree_start': np.int32, 'calib_x': np.float64, 'calib_y': np.float64}
+DEFAULT_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_detector.npz'
+
+
+class DetectorFileError(Exception):
+    """The detector's model file is missing, damaged or of another version."""
+
+
+@dataclass(frozen=True)
+class TreeModel:
+    """A boosted-tree classifier as arrays: raw score = baseline + sum of leaf values."""
+
+    feature_names: tuple
+    baseline: float
+    feature: np.ndarray
+    threshold: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    value: np.ndarray
+    missing_left: np.ndarray
+    is_leaf: np.ndarray
+    tree_start: np.ndarray
+    calib_x: np.ndarray
+    calib_y: np.ndarray
+    meta: dict
+
+    def raw_score(self, x: np.ndarray) -> np.ndarray:
+        """Return the raw (log-odds) score of each row of ``x``."""
+        x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+        if x.shape[1] != len(self.feature_names):
+            raise ValueError(f'{x.shape[1]} features given, the model takes '
+                             f'{len(self.feature_names)}')
+        rows = np.arange(x.shape[0])
+        total = np.full(x.shape[0], self.baseline)
+        for root in self.tree_start:
+            node = np.full(x.shape[0], root, dtype=np.int64)
+            while True:
+                inner = self.is_leaf[node] == 0
+                if not inner.any():
+                    break
+                nd = node[inner]
+                xv = x[rows[inner], self.feature[nd]]
+                go_left = np.where(np.isnan(xv), self.missing_left[nd] == 1,
+                                   xv <= self.threshold[nd])
+                node[inner] = np.where(go_left, self.left[nd], self.right[nd])
+            total += self.value[node]
+        return total
+
+    def probability(self, x: np.ndarray) -> np.ndarray:
+        """Return the calibrated probability of stiction of each row of ``x``."""
+        return np.interp(self.raw_score(x), self.calib_x, self.calib_y)
+
+
+def _digest(arrays: dict, header: str) -> str:
+    h = hashlib.sha256(header.encode())
+    for name in sorted(arrays):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return h.hexdigest()
+
+
+def save(path: str | Path, model: TreeModel) -> None:
+    """Write ``model`` to ``path`` (an ``.npz`` of plain arrays and a JSON header)."""
+    arrays = {k: np.asarray(getattr(model, k), dtype=t) for k, t in ARRAYS.items()}
+    header = json.dumps({'format': FORMAT, 'version': VERSION,
+                         'feature_names': list(model.feature_names),
+                         'baseline': model.baseline, 'meta': model.meta}, sort_keys=True)
+    arrays['header'] = np.array(header)
+    arrays['sha256'] = np.array(_digest({k: arrays[k] for k in ARRAYS}, header))
+    with open(path, 'wb') as fh:
+        np.savez_compressed(fh, **arrays)
+
+
+def _check(a: dict, header: dict, path: Path) -> None:
+    n = a['feature'].shape[0]
+    for k in ('threshold', 'left', 'right', 'value', 'missing_left', 'is_leaf'):
+        if a[k].shape != (n,):
+            raise DetectorFileError(f'{path}: array {k} has shape {a[k].shape}, expected ({n},)')
+    inner = a['is_leaf'] == 0
+    nf = len(header['feature_names'])
+    if (np.any(a['feature'][inner] < 0) or np.any(a['feature'][inner] >= nf)
+            or np.any(a['left'][inner] < 0) or np.any(a['left'][inner] >= n)
+            or np.any(a['right'][inner] < 0) or np.any(a['right'][inner] >= n)
+            or np.any(a['tree_start'] < 0) or np.any(a['tree_start'] >= n)):
+        raise DetectorFileError(f'{path}: tree arrays point outside the model')
+    cx, cy = a['calib_x'], a['calib_y']
+    if (cx.ndim != 1 or cx.shape != cy.shape or cx.size < 2 or np.any(np.diff(cx) < 0)
+            or np.any((cy < 0) | (cy > 1))):
+        raise DetectorFileError(f'{path}: the calibration map is not a monotone [0, 1] map')
+
+
+def load(path: str | Path | None = None, feature_names: tuple | None = None) -> TreeModel:
+    """
+    Return the :class:`TreeModel` stored at ``path`` (default: the shipped detector).
+
+    ``feature_names``: the features the caller will give; a file trained on
+    other features is refused.  Raises :class:`DetectorFileError`.
+    """
+    path = Path(path) if path is not None else DEFAULT_PATH
+    if not path.is_file():
+        raise DetectorFileError(f'{path}: no detector model file; rebuild it with '
+                                f'`make detector`')
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise DetectorFileError(f'{path}: not a readable detector file ({exc})') from None
+    missing = [k for k in (*ARRAYS, 'header', 'sha256') if k not in a]
+    if missing:
+        raise DetectorFileError(f'{path}: missing arrays {missing}')
+    try:
+        header = json.loads(str(a['header']))
+    except ValueError:
+        raise DetectorFileError(f'{path}: damaged header') from None
+    if header.get('format') != FORMAT or header.get('version') != VERSION:
+        raise DetectorFileError(f'{path}: format {header.get("format")!r} version '
+                                f'{header.get("version")!r}; this code reads {FORMAT} '
+                                f'version {VERSION}')
+    for k, t in ARRAYS.items():
+        if a[k].dtype != t or a[k].ndim != 1:
+            raise DetectorFileError(f'{path}: array {k} is {a[k].dtype}[{a[k].ndim}-D], '
+                                    f'expected 1-D {np.dtype(t)}')
+    if _digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
+        raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
+    _check(a, header, path)
+    names = tuple(header['feature_names'])
+    if feature_names is not None and names != tuple(feature_names):
+        raise DetectorFileError(f'{path}: trained on features {list(names)}, this code '
+                                f'computes {list(feature_names)}; rebuild with `make detector`')
+    return TreeModel(names, float(header['baseline']), *(a[k] for k in ARRAYS), header['meta'])

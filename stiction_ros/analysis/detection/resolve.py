@@ -1,0 +1,119 @@
+"""
+Whether a record can be judged at all: the `cannot tell` answers and their reasons.
+
+A detector that votes on a record it cannot read is worse than one that
+declines.  These checks run before any signature or learned model and are
+deliberately plain, each with a reason an engineer can act on:
+
+* too short: fewer than ``MIN_SAMPLES`` usable samples;
+* PV constant: the measurement never moves (a frozen transmitter, a dead
+  historian tag, a value like 3.5e-44), so nothing in it can show a valve;
+* no excitation: OP never moves beyond its own resolution, so the valve was
+  never asked to move (manual mode, saturated output);
+* under-sampled: the loop's own cycle is shorter than ``MIN_PERIOD_SAMPLES``
+  samples, or alternates sample to sample, so stick-slip cannot be resolved
+  and any size estimate would be an alias.
+
+:func:`period_sanity` (in :mod:`stiction_ros.analysis.oscillation`) is the
+rule every oscillation-based signature obeys: a cycle shorter than
+``MIN_PERIOD_SAMPLES`` samples or longer than a quarter of the record is
+unresolvable and gets no vote.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
+
+__all__ = ['cycle_judgeable', 'Judgeable', 'judgeable', 'MIN_PERIOD_SAMPLES', 'MIN_SAMPLES',
+           'period_sanity', 'robust_noise']
+
+MIN_SAMPLES = 200
+# Distinct-value and spread floors that separate a frozen signal from a quiet one.
+MIN_DISTINCT = 5
+RELATIVE_FLOOR = 1e-9
+# OP moving less than this (% of span, peak to peak) never asked the valve to move.
+MIN_OP_TRAVEL = 0.05
+# Lag-1 autocorrelation below this means a cycle near the Nyquist frequency.
+ALTERNATING = -0.35
+
+
+@dataclass(frozen=True)
+class Judgeable:
+    """Whether a record can be judged; ``reason`` says why not, ``code`` names the rule."""
+
+    ok: bool
+    code: str = ''
+    reason: str = ''
+
+    def to_json(self) -> dict:
+        """Return the JSON-able fields."""
+        return {'ok': self.ok, 'code': self.code, 'reason': self.reason}
+
+
+def robust_noise(x: np.ndarray) -> float:
+    """Return the white-noise standard deviation of ``x`` from its first differences (MAD)."""
+    d = np.diff(np.asarray(x, dtype=np.float64))
+    if d.size < 2:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2.0))
+
+
+def _frozen(x: np.ndarray) -> bool:
+    scale = max(float(np.max(np.abs(x))), 1.0)
+    return (np.unique(x).size < MIN_DISTINCT
+            or float(np.ptp(x)) <= RELATIVE_FLOOR * scale or float(np.ptp(x)) < 1e-30)
+
+
+def _lag1(x: np.ndarray) -> float:
+    x = x - x.mean()
+    den = float(np.dot(x, x))
+    return float(np.dot(x[1:], x[:-1]) / den) if den > 0 else 0.0
+
+
+def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float) -> Judgeable:
+    """Return whether OP and PV (held, contiguous) can be judged for stiction, and why not."""
+    op = np.asarray(op, dtype=np.float64)
+    pv = np.asarray(pv, dtype=np.float64)
+    n = len(pv)
+    if n < MIN_SAMPLES:
+        return Judgeable(False, 'too_short',
+                         f'too short: {n} usable samples, at least {MIN_SAMPLES} needed')
+    if _frozen(pv):
+        return Judgeable(False, 'pv_constant',
+                         f'PV is constant ({np.unique(pv).size} distinct values, range '
+                         f'{float(np.ptp(pv)):.3g}): the measurement shows nothing of the '
+                         f'valve; check the transmitter or the historian tag')
+    if _frozen(op) or float(np.ptp(op)) < MIN_OP_TRAVEL:
+        return Judgeable(False, 'no_excitation',
+                         f'OP never moved more than {float(np.ptp(op)):.3g} % (manual mode or '
+                         f'saturated?): the valve was never asked to move')
+    d_op, d_pv = np.diff(op), np.diff(pv)
+    if _lag1(d_op) < ALTERNATING - 0.2 and _lag1(pv - np.mean(pv)) < ALTERNATING:
+        return Judgeable(False, 'under_sampled',
+                         f'OP and PV alternate from sample to sample: the loop cycles faster '
+                         f'than 2-3 samples of {sample_time:g} s, so stick-slip cannot be '
+                         f'resolved; record at a shorter sample time')
+    if float(np.std(d_pv)) == 0.0:
+        return Judgeable(False, 'pv_constant', 'PV does not vary')
+    return Judgeable(True)
+
+
+def cycle_judgeable(oscillating: bool, period_s: float | None,
+                    sample_time: float) -> Judgeable:
+    """
+    Return whether a record whose error cycles regularly can be judged.
+
+    A regular cycle of fewer than ``MIN_PERIOD_SAMPLES`` samples is the
+    loop's main behaviour and its shape is lost between samples: whether
+    the valve sticks in it cannot be told, and a band sized from it would
+    be an alias.
+    """
+    if oscillating and period_s and period_s / sample_time < MIN_PERIOD_SAMPLES:
+        return Judgeable(False, 'under_sampled',
+                         f'under-sampled: the loop cycles every {period_s:.4g} s, only '
+                         f'{period_s / sample_time:.1f} samples of {sample_time:g} s; stick-slip '
+                         f'in it cannot be resolved (record at {period_s / 20:.3g} s or '
+                         f'faster)')
+    return Judgeable(True)

@@ -1,0 +1,82 @@
+"""
+Train the learned detector on simulated loops and export it as plain arrays.
+
+Only ``make detector`` and the tests import this module: it needs
+scikit-learn, which the analyzer itself does not.  The classifier is a
+histogram gradient-boosting model (shallow trees on the engineered features
+of :mod:`features`, missing values native); its raw score is calibrated to a
+probability by isotonic regression on simulated records it was not trained
+on.  Real plant loops never enter training or calibration.
+"""
+
+import numpy as np
+
+from stiction_ros.analysis.detection.model_file import TreeModel
+
+# Classes weighted equally: the probability is stated for even odds, and 0.5
+# is then the threshold of the best balanced accuracy whatever the share of
+# sticky records a set happens to hold.
+PARAMS = {'max_iter': 300, 'learning_rate': 0.05, 'max_leaf_nodes': 15, 'min_samples_leaf': 40,
+          'l2_regularization': 1.0, 'class_weight': 'balanced', 'random_state': 0}
+
+
+def fit_classifier(x: np.ndarray, y: np.ndarray, **params):
+    """Return a fitted ``HistGradientBoostingClassifier`` (``PARAMS`` unless overridden)."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+    return HistGradientBoostingClassifier(**{**PARAMS, **params}).fit(x, y)
+
+
+def fit_calibration(raw: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the isotonic map (score knots, probabilities) fitted on held-out scores.
+
+    Each class carries half the weight, so the probability is that of
+    stiction at even prior odds.
+    """
+    from sklearn.isotonic import IsotonicRegression
+    y = np.asarray(y, dtype=bool)
+    w = np.where(y, 0.5 / max(y.sum(), 1), 0.5 / max((~y).sum(), 1))
+    iso = IsotonicRegression(out_of_bounds='clip', y_min=0.0, y_max=1.0)
+    iso.fit(raw, y, sample_weight=w)
+    cx, cy = np.asarray(iso.X_thresholds_, float), np.asarray(iso.y_thresholds_, float)
+    if cx.size < 2:
+        cx, cy = np.array([cx[0] - 1.0, cx[0] + 1.0]), np.array([cy[0], cy[0]])
+    return cx, cy
+
+
+def export(clf, feature_names, calib: tuple, meta: dict) -> TreeModel:
+    """Return the :class:`TreeModel` of a fitted binary ``HistGradientBoostingClassifier``."""
+    cols = {k: [] for k in ('feature', 'threshold', 'left', 'right', 'value',
+                            'missing_left', 'is_leaf')}
+    starts, offset = [], 0
+    for per_iter in clf._predictors:
+        nodes = per_iter[0].nodes
+        if np.any(nodes['is_categorical']):
+            raise ValueError('categorical splits are not supported by the exported model')
+        starts.append(offset)
+        cols['feature'].append(nodes['feature_idx'])
+        cols['threshold'].append(nodes['num_threshold'])
+        cols['left'].append(nodes['left'].astype(np.int64) + offset)
+        cols['right'].append(nodes['right'].astype(np.int64) + offset)
+        cols['value'].append(nodes['value'])
+        cols['missing_left'].append(nodes['missing_go_to_left'])
+        cols['is_leaf'].append(nodes['is_leaf'])
+        offset += len(nodes)
+    arr = {k: np.concatenate(v) for k, v in cols.items()}
+    leaf = arr['is_leaf'] == 1
+    arr['left'][leaf] = 0
+    arr['right'][leaf] = 0
+    baseline = float(np.ravel(clf._baseline_prediction)[0])
+    return TreeModel(tuple(feature_names), baseline, arr['feature'].astype(np.int32),
+                     arr['threshold'].astype(np.float64), arr['left'].astype(np.int32),
+                     arr['right'].astype(np.int32), arr['value'].astype(np.float64),
+                     arr['missing_left'].astype(np.uint8), arr['is_leaf'].astype(np.uint8),
+                     np.array(starts, dtype=np.int32), calib[0], calib[1], meta)
+
+
+def train(x_train: np.ndarray, y_train: np.ndarray, x_cal: np.ndarray, y_cal: np.ndarray,
+          feature_names, meta: dict, **params) -> tuple:
+    """Return ``(TreeModel, classifier)`` trained on one set and calibrated on the other."""
+    clf = fit_classifier(x_train, y_train, **params)
+    calib = fit_calibration(clf.decision_function(x_cal), y_cal)
+    return export(clf, feature_names, calib, meta), clf

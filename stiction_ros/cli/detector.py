@@ -1,0 +1,99 @@
+"""
+Rebuild the learned stiction detector from simulated loops (``make detector``).
+
+    python -m stiction_ros.cli.detector [--out FILE] [--train N] [--calibration N] [--jobs J]
+
+Draws and simulates the training and calibration records from their seeds
+(``stiction_ros.analysis.detection.dataset``), trains the boosted trees on
+the first, calibrates their probability on the second and writes the model
+file.  The same seeds and code give the same file.  Real plant loops are
+never read.
+"""
+
+import argparse
+import datetime
+import os
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+
+from stiction_ros.analysis.accuracy import balanced_accuracy, confusion
+from stiction_ros.analysis.detection import dataset, model_file
+from stiction_ros.analysis.detection.features import FEATURE_NAMES
+
+
+def parser() -> argparse.ArgumentParser:
+    """Return the command-line parser."""
+    p = argparse.ArgumentParser(prog='stiction-detector', description=__doc__.split('\n')[1])
+    p.add_argument('--out', default=str(model_file.DEFAULT_PATH),
+                   help='model file to write (default: the shipped one)')
+    p.add_argument('--train', type=int, default=len(dataset.TRAIN),
+                   help=f'training records, seeds from {dataset.TRAIN.start}')
+    p.add_argument('--calibration', type=int, default=len(dataset.CALIBRATION),
+                   help=f'calibration records, seeds from {dataset.CALIBRATION.start}')
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
+    p.add_argument('--cache', default='out/detector_cache',
+                   help='folder keeping the features of each simulated set, reused while the '
+                        'seeds and the code are unchanged ("" for none)')
+    return p
+
+
+def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> tuple:
+    """Return (TreeModel, figures) trained and calibrated on fresh simulated records."""
+    import sklearn
+    from stiction_ros.analysis.detection.train import PARAMS, train
+    t0 = time.perf_counter()
+    tr_seeds = range(dataset.TRAIN.start, dataset.TRAIN.start + n_train)
+    ca_seeds = range(dataset.CALIBRATION.start, dataset.CALIBRATION.start + n_cal)
+    say(f'training set: {n_train} simulated records (seeds {tr_seeds.start}-{tr_seeds.stop - 1})')
+    tr = dataset.build(tr_seeds, jobs, cache=cache)
+    say(f'calibration set: {n_cal} records (seeds {ca_seeds.start}-{ca_seeds.stop - 1})')
+    ca = dataset.build(ca_seeds, jobs, cache=cache)
+    t1 = time.perf_counter()
+    meta = {'version': model_file.VERSION, 'file': 'stiction_detector.npz',
+            'trained_on': (f'{len(tr["y"])} simulated closed loops (seeds {tr_seeds.start}-'
+                           f'{tr_seeds.stop - 1}), calibrated on {len(ca["y"])} more (seeds '
+                           f'{ca_seeds.start}-{ca_seeds.stop - 1}); no plant data'),
+            'train_seeds': [tr_seeds.start, tr_seeds.stop],
+            'calibration_seeds': [ca_seeds.start, ca_seeds.stop],
+            'skipped': {'train': tr['skipped'], 'calibration': ca['skipped']},
+            'sklearn': sklearn.__version__, 'params': PARAMS,
+            'date': datetime.date.today().isoformat()}
+    model, clf = train(tr['x'], tr['y'], ca['x'], ca['y'], FEATURE_NAMES, meta)
+    t2 = time.perf_counter()
+    pred = model.probability(ca['x']) >= 0.5
+    c = confusion(ca['y'], pred)
+    figures = {'features_s': round(t1 - t0, 1), 'fit_s': round(t2 - t1, 1),
+               'calibration_balanced_accuracy': round(balanced_accuracy(c), 4),
+               'trees': int(len(model.tree_start)), 'nodes': int(len(model.feature)),
+               'max_abs_export_error': float(np.max(np.abs(
+                   model.raw_score(ca['x']) - clf.decision_function(ca['x']))))}
+    model.meta['figures'] = figures
+    return model, figures
+
+
+def main(argv=None) -> int:
+    """Entry point."""
+    args = parser().parse_args(argv)
+    if args.train < 100 or args.calibration < 50:
+        print('stiction-detector: error: at least 100 training and 50 calibration records',
+              file=sys.stderr)
+        return 2
+    model, figures = build_model(args.train, args.calibration, args.jobs,
+                                 lambda m: print(m, file=sys.stderr, flush=True),
+                                 args.cache or None)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    model_file.save(args.out, model)
+    model_file.load(args.out, FEATURE_NAMES)
+    size = Path(args.out).stat().st_size
+    print(f'wrote {args.out} ({size / 1024:.0f} KiB, {figures["trees"]} trees, '
+          f'{figures["nodes"]} nodes); calibration-set balanced accuracy '
+          f'{figures["calibration_balanced_accuracy"]:.3f}; features {figures["features_s"]} s, '
+          f'fit {figures["fit_s"]} s')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,139 @@
+"""The detector's judge, stuck periods, model file and the export of the trained trees."""
+
+import numpy as np
+import pytest
+
+from stiction_ros.analysis.detection import model_file
+from stiction_ros.analysis.detection.resolve import (
+    cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
+from stiction_ros.analysis.detection.stuck import stuck_periods
+from stiction_ros.closed_loop import simulate_loop
+from stiction_ros.disturbed_loops import disturbed_loop
+from stiction_ros.loop_config import load_loop
+from stiction_ros.paths import config_file
+
+
+def noisy(n, seed=0, scale=1.0):
+    return scale * np.random.default_rng(seed).standard_normal(n)
+
+
+def test_cannot_tell_reasons():
+    op = 50 + np.cumsum(noisy(600, 1, 0.1))
+    pv = 10 + noisy(600, 2)
+    assert judgeable(op, pv, 1.0).ok
+    assert judgeable(op[:MIN_SAMPLES - 1], pv[:MIN_SAMPLES - 1], 1.0).code == 'too_short'
+    # A dead historian tag: PV is one tiny constant (seen in a plant export).
+    assert judgeable(op, np.full(600, 3.5e-44), 1.0).code == 'pv_constant'
+    assert judgeable(np.full(600, 42.0), pv, 1.0).code == 'no_excitation'
+    # OP and PV flipping every sample: a cycle the sampling cannot resolve.
+    alt = np.where(np.arange(600) % 2 == 0, 1.0, -1.0)
+    j = judgeable(50 + 5 * alt + noisy(600, 3, 0.1), 5 * alt + noisy(600, 4, 0.1), 180.0)
+    assert j.code == 'under_sampled' and '180 s' in j.reason
+
+
+def test_period_sanity_rules():
+    assert period_sanity(300.0, 10.0, 1000) == ''
+    assert 'only 5.0 samples' in period_sanity(50.0, 10.0, 1000)
+    assert 'quarter of the record' in period_sanity(3000.0, 10.0, 1000)
+    assert not cycle_judgeable(True, 40.0, 10.0).ok
+    assert cycle_judgeable(True, 400.0, 10.0).ok
+    assert cycle_judgeable(False, None, 10.0).ok
+
+
+def test_a_sticking_valve_sampled_every_3_minutes_cannot_be_told():
+    # Table 2.1's loop with a sticking valve cycles every ~75 s at 1 s; a
+    # historian that keeps one sample in 180 sees no cycle it can resolve.
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'valve': {'model': 'kano', 'S': 5.0, 'J': 5.0},
+        'noise': {'pv_std': 0.05, 'seed': 1}})
+    out = simulate_loop(cfg, 180.0 * 1500)
+    from stiction_ros.analysis.oscillation import detect_oscillation
+    fine = detect_oscillation(out['sp'][:5000] - out['pv'][:5000], 1.0)
+    assert fine.oscillating and 60 < fine.period_s < 90
+    op, pv, sp = (out[k][::180] for k in ('op', 'pv', 'sp'))
+    j = judgeable(op, pv, 180.0)
+    coarse = detect_oscillation(sp - pv, 180.0)
+    if j.ok:
+        j = cycle_judgeable(coarse.oscillating, coarse.period_s, 180.0)
+    assert not j.ok and j.code == 'under_sampled'
+
+
+def _flow_loop(valve, seed):
+    # A fast self-regulating loop hit by load steps: PV stands in for MV.
+    return disturbed_loop(valve, seed, Kc=0.2, Ti=60.0, pv_std=0.02, duration=4000.0)
+
+
+def test_stuck_periods_are_where_the_valve_really_stood_still():
+    rec = _flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.0}, 101)
+    st = stuck_periods(rec['op'], rec['pv'], rec['sp'])
+    assert st.stuck, 'a valve with a 3 % band under PI must be found stuck somewhere'
+    for a, b, travel in st.stuck:
+        # The physics: inside a stuck period the true position barely moves
+        # while OP travels; allow the edges a smoothing window each.
+        mv = rec['mv_true'][a + 5:b - 5]
+        still = np.mean(np.abs(np.diff(mv)) < 1e-9) if mv.size > 1 else 1.0
+        assert still > 0.8, (a, b, still)
+        assert travel > 0
+
+
+def test_a_linear_valve_is_rarely_found_stuck():
+    shares = [stuck_periods(r['op'], r['pv'], r['sp']).stuck_op_share
+              for r in (_flow_loop({'model': 'linear'}, s) for s in range(200, 206))]
+    sticky = [stuck_periods(r['op'], r['pv'], r['sp']).stuck_op_share
+              for r in (_flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.0}, s)
+                        for s in range(200, 206))]
+    assert np.median(shares) < 0.2 < np.median(sticky)
+
+
+def _tiny_model(tmp_path, seed=0):
+    pytest.importorskip('sklearn')
+    from stiction_ros.analysis.detection.train import train
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((600, 4))
+    x[rng.random(x.shape) < 0.1] = np.nan
+    y = (np.nan_to_num(x[:, 0]) + 0.5 * np.nan_to_num(x[:, 1]) ** 2
+         + 0.3 * rng.standard_normal(600)) > 0.3
+    model, clf = train(x[:400], y[:400], x[400:], y[400:], ('a', 'b', 'c', 'd'),
+                       {'note': 'test'}, max_iter=40)
+    path = tmp_path / 'm.npz'
+    model_file.save(path, model)
+    return path, x, clf
+
+
+def test_exported_trees_score_exactly_as_scikit_learn(tmp_path):
+    path, x, clf = _tiny_model(tmp_path)
+    m = model_file.load(path, ('a', 'b', 'c', 'd'))
+    assert np.allclose(m.raw_score(x), clf.decision_function(x), rtol=0, atol=1e-9)
+    p = m.probability(x)
+    assert np.all((p >= 0) & (p <= 1))
+    # Calibration is monotone: a higher raw score never means less stiction.
+    order = np.argsort(m.raw_score(x))
+    assert np.all(np.diff(p[order]) >= -1e-12)
+
+
+def test_a_missing_or_damaged_model_file_is_a_clear_error(tmp_path):
+    path, _, _ = _tiny_model(tmp_path)
+    with pytest.raises(model_file.DetectorFileError, match='make detector'):
+        model_file.load(tmp_path / 'absent.npz')
+    cut = tmp_path / 'cut.npz'
+    cut.write_bytes(path.read_bytes()[:300])
+    with pytest.raises(model_file.DetectorFileError, match='not a readable'):
+        model_file.load(cut)
+    with pytest.raises(model_file.DetectorFileError, match='trained on features'):
+        model_file.load(path, ('x', 'y', 'z', 'w'))
+    # One leaf value changed behind the checksum's back.
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays['value'] = arrays['value'].copy()
+    arrays['value'][3] += 1.0
+    edited = tmp_path / 'edited.npz'
+    np.savez(edited, **arrays)
+    with pytest.raises(model_file.DetectorFileError, match='checksum'):
+        model_file.load(edited)
+
+
+def test_the_shipped_model_loads_and_matches_the_features():
+    from stiction_ros.analysis.detection import FEATURE_NAMES, load_model
+    m = load_model()
+    assert m.feature_names == FEATURE_NAMES
+    assert 'no plant data' in m.meta['trained_on']
