@@ -1,35 +1,38 @@
 """
-Score the analyzer on labelled plant loops and write docs/ACCURACY.md.
+Score the stiction verdict on held-out data and write docs/ACCURACY.md (``make accuracy``).
 
     python -m stiction_ros.cli.accuracy [DATA_DIR] [--reports out/plant_loops]
-                                        [--markdown docs/ACCURACY.md]
+                                        [--markdown docs/ACCURACY.md] [--sim-test N]
 
 DATA_DIR holds ``stiction/`` and ``no_stiction/`` folders of recordings (by
 default the shared plant loops).  Every file is analysed by the same code as
-``stiction-analyze``, and its JSON and HTML reports are written under
-``--reports``.  See ``stiction_ros.analysis.accuracy`` for the protocol.
+``stiction-analyze`` and its JSON and HTML reports are written under
+``--reports``.  Then the simulated test set (seeds never used for training
+or tuning) is drawn and scored.  See ``stiction_ros.analysis.accuracy_study``
+for the protocol.
 """
 
 import argparse
 import datetime
 import json
+import os
 from pathlib import Path
+import platform
 import re
 import sys
+import time
 
-from stiction_ros.analysis.accuracy import (
-    balanced_accuracy, confusion, cross_validate, signature_alone, SIGNATURES)
-from stiction_ros.analysis.signatures.slip_events import slip_events
+import numpy as np
+
+from stiction_ros.analysis.accuracy import cross_validate, signature_alone, SIGNATURES
+from stiction_ros.analysis.accuracy_study import (
+    best_threshold, by_kind, per_tag, score, sim_rows)
+from stiction_ros.analysis.detection import dataset, FEATURE_NAMES, load_model
+from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.analyze import run_analysis
-from stiction_ros.disturbed_loops import detection_rates
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
-
-
-def _slips(record):
-    ts = float(record['t'][1] - record['t'][0])
-    return slip_events(record['op'], record['pv'], record['sp'], ts).stiction
 
 
 def loop_group(name):
@@ -50,104 +53,38 @@ def analyse_all(data_dir, reports):
             input=str(f), model='both', S=None, J=None, fit_filter=False, window=None,
             namespace=None, loop_type='auto', no_hammerstein=False,
             json_path=str(out) + '.json', html_path=str(out) + '.html')
+        t0 = time.perf_counter()
         a = run_analysis(args, lambda msg: None)
         cases.append({'label': lab == 'stiction', 'group': loop_group(a.record.name),
-                      'file': f.name, 'report': a.report,
+                      'file': f.name, 'report': a.report, 'seconds': time.perf_counter() - t0,
                       'oscillation': a.oscillation, 'signatures': a.signatures})
     return cases
 
 
-def _cm_row(name, c):
-    return (f'| {name} | {c["tp"]} | {c["fn"]} | {c["fp"]} | {c["tn"]} | '
-            f'{balanced_accuracy(c):.2f} |')
+def _stuck_answers(cases, threshold):
+    out = []
+    for c in cases:
+        det = c['report']['stiction'].get('detector') or {}
+        v = (det.get('features') or {}).get('stuck_op_share')
+        out.append(None if v is None else bool(v >= threshold))
+    return out
 
 
-def slip_section(rates):
-    """Return the markdown lines of the slip-event test's simulated rates."""
-    lines = ['## Slip-event test on simulated loops', '',
-             'Table 2.1 plant under PI at three tunings, 3 random set-point and 4 random '
-             'load steps in 4 000 s, PV noise 0.02 and 0.1, 15 seeds each '
-             '(`stiction_ros/disturbed_loops.py`):', '',
-             '| valve | runs where it found a slip | by tuning |', '|---|---|---|']
-    for name, r in rates.items():
-        by = ', '.join(f'{k}: {v}' for k, v in r['by_tuning'].items())
-        lines.append(f'| {name} | {r["found"]} of {r["runs"]} | {by} |')
-    return lines + ['']
-
-
-def markdown(cases, chosen, cv_pred, data_dir, slip_rates=None):
-    """Return the text of ACCURACY.md."""
-    slip_lines = slip_section(slip_rates) if slip_rates else []
+def plant_rows(cases, cv_pred, stuck_threshold):
+    """Return {method: score} on the plant loops."""
     truth = [c['label'] for c in cases]
-    rows = []
-    for name in SIGNATURES + ('bicoherence',):
-        rows.append(_cm_row(f'{name} alone (published threshold)',
-                            confusion(truth, signature_alone(cases, name))))
-    shipped = [bool(c['report']['stiction']['detected']) for c in cases]
-    rows.append(_cm_row('combined verdict, shipped rule (resubstitution)',
-                        confusion(truth, shipped)))
-    rows.append(_cm_row('**combined verdict, leave-one-loop-out CV**',
-                        confusion(truth, cv_pred)))
-    groups = sorted({c['group'] for c in cases})
-    oscillating = [bool(c['oscillation'] and c['oscillation'].oscillating) for c in cases]
-    osc_pos = sum(o for o, t in zip(oscillating, truth) if t)
-    osc_neg = sum(o for o, t in zip(oscillating, truth) if not t)
-    lines = [
-        '# Accuracy on the labelled plant loops',
-        '',
-        f'Generated by `make accuracy` on {datetime.date.today().isoformat()} from '
-        f'`{data_dir}`: {sum(truth)} sticky and {len(truth) - sum(truth)} healthy '
-        f'records of {len(groups)} loops (historian tags). Positive class = stiction. '
-        'An undetermined answer counts as "no stiction".',
-        '',
-        'The figure to quote is the cross-validated one: in each fold one loop (all its',
-        'files) is held out, the combined rule (which signatures vote, score threshold) is',
-        'chosen on the other loops and applied to the held-out one. Signatures alone use',
-        "their papers' thresholds and are tuned on nothing here.",
-        '',
-        '| method | TP | FN | FP | TN | balanced accuracy |',
-        '|---|---|---|---|---|---|',
-        *rows,
-        '',
-        '## Why the figure is what it is',
-        '',
-        f'Only {osc_pos} of {sum(truth)} sticky and {osc_neg} of {len(truth) - sum(truth)} '
-        'healthy records hold a regular oscillation (Thornhill regularity > 1 on SP - PV).',
-        'Horch, He and the PV-OP ellipse need one by definition, so on the others they',
-        'cannot decide. The sticky records mostly show one or two slow stick-slip events',
-        'in two hours. The slip-event test (stiction_ros/analysis/signatures/slip_events.py)',
-        'looks for exactly those: PV jumps toward the set point out of rest while OP, which',
-        'had been travelling, turns back. It is the only voter in loops without an',
-        'oscillation. It finds no slip in most FIC20102 files because their PV either',
-        'never jumps (OP ramps for an hour with PV flat and no release in the record) or',
-        'jumps within 300 s of a set-point step, which the test refuses to tell apart from',
-        'a healthy set-point response. Its settings were fixed on simulated loops before',
-        'it was run here, but the mechanism was chosen after looking at these records, so',
-        'read its figure as optimistic; its rates on simulated loops are below.',
-        "Yamashita's index needs no oscillation but also fires on healthy loops whose PV is",
-        'noisy relative to OP. Records whose PV never varies (FIC10112, PV = 3.5e-44)',
-        'cannot be judged from OP and PV.',
-        '',
-        *slip_lines,
-        '## Per file',
-        '',
-        '| label | file | loop type | oscillating | signatures saying stiction | '
-        'CV verdict | shipped verdict |',
-        '|---|---|---|---|---|---|---|',
-    ]
-    for c, p in zip(cases, cv_pred):
-        said = [n for n, s in c['signatures'].items() if s.stiction]
-        osc = c['oscillation'].oscillating if c['oscillation'] else '-'
-        lines.append(f'| {"stiction" if c["label"] else "healthy"} | {c["file"]} | '
-                     f'{c["report"]["loop_type"]} | {osc} | {", ".join(said) or "-"} | '
-                     f'{"stiction" if p else "-"} | '
-                     f'{"stiction" if c["report"]["stiction"]["detected"] else "-"} |')
-    lines += ['', '## Rules chosen per fold', '']
-    for group, (weights, th) in chosen:
-        voters = ', '.join(n for n, w in weights.items() if w) or '-'
-        lines.append(f'- held out {group}: voters {voters}; threshold {th}')
-    lines.append('')
-    return '\n'.join(lines)
+    learned = [c['report']['stiction']['detected'] for c in cases]
+    old = [bool(c['report']['stiction'].get('signature_vote', {}).get('detected'))
+           for c in cases]
+    rows = {'**learned detector** (trained on simulation only)': score(truth, learned),
+            'old rule (signature vote, published weights)': score(truth, old),
+            'old rule, voters and threshold chosen leave-one-tag-out': score(truth, cv_pred),
+            f'stuck-period test alone (OP share >= {stuck_threshold:.3g}, set on simulation)':
+            score(truth, _stuck_answers(cases, stuck_threshold))}
+    for name in SIGNATURES:
+        rows[f'{name} alone (published threshold)'] = score(truth,
+                                                            signature_alone(cases, name))
+    return rows
 
 
 def main(argv=None):
@@ -157,29 +94,62 @@ def main(argv=None):
     p.add_argument('--reports', default='out/plant_loops')
     p.add_argument('--markdown', default='docs/ACCURACY.md')
     p.add_argument('--json', default='docs/accuracy.json')
-    p.add_argument('--no-simulations', action='store_true',
-                   help='skip the slip-event rates on simulated loops (about 30 s)')
+    p.add_argument('--sim-test', type=int, default=len(dataset.TEST),
+                   help=f'simulated test records (seeds from {dataset.TEST.start})')
+    p.add_argument('--sim-calibration', type=int, default=len(dataset.CALIBRATION),
+                   help='simulated records on which the stuck-period threshold is set')
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
+    p.add_argument('--cache', default='out/detector_cache',
+                   help='folder of cached simulated features (shared with make detector)')
     args = p.parse_args(argv)
     if not Path(args.data).is_dir():
         print(f'stiction-accuracy: error: {args.data} is not a folder', file=sys.stderr)
         return 2
+    model = load_model()
+    say = (lambda m: print(m, file=sys.stderr, flush=True))
+    say(f'simulated calibration records for the single-test thresholds: {args.sim_calibration}')
+    cal = dataset.build(range(dataset.CALIBRATION.start,
+                              dataset.CALIBRATION.start + args.sim_calibration), args.jobs,
+                        cache=args.cache or None)
+    stuck_th = best_threshold(cal['x'][:, FEATURE_NAMES.index('stuck_op_share')], cal['y'])
     cases = analyse_all(args.data, args.reports)
-    cv_pred, chosen = cross_validate(cases)
-    rates = None
-    if not args.no_simulations:
-        rates = detection_rates(_slips, progress=lambda m: print(m, file=sys.stderr, flush=True))
-    Path(args.markdown).write_text(markdown(cases, chosen, cv_pred, args.data, rates),
-                                   encoding='utf-8')
-    summary = {'cases': [{'file': c['file'], 'label': c['label'], 'group': c['group'],
-                          'cv_prediction': p,
-                          'detected': c['report']['stiction']['detected'],
-                          'score': c['report']['stiction']['score']}
-                         for c, p in zip(cases, cv_pred)],
-               'cv_confusion': confusion([c['label'] for c in cases], cv_pred),
-               'slip_events_on_simulations': rates}
-    Path(args.json).write_text(json.dumps(summary, indent=2) + '\n', encoding='utf-8')
+    cv_pred, _ = cross_validate(cases)
+    say(f'simulated test set: {args.sim_test} records (seeds {dataset.TEST.start}-'
+        f'{dataset.TEST.start + args.sim_test - 1})')
+    test = dataset.build(range(dataset.TEST.start, dataset.TEST.start + args.sim_test),
+                         args.jobs, cache=args.cache or None)
+    study = {
+        'date': datetime.date.today().isoformat(),
+        'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
+                   f'Python {platform.python_version()})',
+        'data': str(args.data), 'model': model.meta, 'stuck_threshold': stuck_th,
+        'plant': plant_rows(cases, cv_pred, stuck_th),
+        'plant_tags': per_tag(cases, [c['report']['stiction']['detected'] for c in cases]),
+        'plant_seconds': [round(c['seconds'], 3) for c in cases],
+        'sim': sim_rows(test, model, stuck_th), 'sim_kinds': by_kind(test, model),
+        'sim_skipped': test['skipped'], 'sim_records': int(len(test['y'])),
+        'sim_seconds': round(test['seconds'], 1), 'sim_jobs': args.jobs,
+        'sim_seeds': [dataset.TEST.start, dataset.TEST.start + args.sim_test],
+        'cases': [{'file': c['file'], 'label': c['label'], 'group': c['group'],
+                   'answer': c['report']['stiction'].get('answer'),
+                   'probability': c['report']['stiction'].get('probability'),
+                   'old_rule': (c['report']['stiction'].get('signature_vote') or {})
+                   .get('detected'), 'cv_old_rule': p_,
+                   'reason': c['report']['stiction'].get('reason'),
+                   'evidence': c['report']['stiction'].get('evidence', [])[:3]}
+                  for c, p_ in zip(cases, cv_pred)],
+    }
+    Path(args.markdown).write_text(markdown(study), encoding='utf-8')
+    Path(args.json).write_text(json.dumps(study, indent=2, default=_plain) + '\n',
+                               encoding='utf-8')
     print(Path(args.markdown).read_text(encoding='utf-8'))
     return 0
+
+
+def _plain(v):
+    if isinstance(v, (np.integer, np.floating, np.bool_)):
+        return v.item()
+    raise TypeError(f'not JSON-able: {type(v)}')
 
 
 if __name__ == '__main__':
