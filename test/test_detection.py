@@ -137,3 +137,15 @@ def test_the_shipped_model_loads_and_matches_the_features():
     m = load_model()
     assert m.feature_names == FEATURE_NAMES
     assert 'no plant data' in m.meta['trained_on']
+
+
+def test_a_tree_that_points_back_is_refused_not_walked_forever(tmp_path):
+    path, _, _ = _tiny_model(tmp_path)
+    m = model_file.load(path)
+    inner = int(np.flatnonzero(m.is_leaf == 0)[1])
+    left = m.left.copy()
+    left[inner] = inner  # a cycle: the node is its own child
+    bad = tmp_path / 'cycle.npz'
+    model_file.save(bad, model_file.TreeModel(**{**m.__dict__, 'left': left}))
+    with pytest.raises(model_file.DetectorFileError, match='points back'):
+        model_file.load(bad)

@@ -103,11 +103,18 @@ def _check(a: dict, header: dict, path: Path) -> None:
             raise DetectorFileError(f'{path}: array {k} has shape {a[k].shape}, expected ({n},)')
     inner = a['is_leaf'] == 0
     nf = len(header['feature_names'])
-    if (np.any(a['feature'][inner] < 0) or np.any(a['feature'][inner] >= nf)
-            or np.any(a['left'][inner] < 0) or np.any(a['left'][inner] >= n)
-            or np.any(a['right'][inner] < 0) or np.any(a['right'][inner] >= n)
-            or np.any(a['tree_start'] < 0) or np.any(a['tree_start'] >= n)):
+    starts = a['tree_start']
+    if (starts.size == 0 or starts[0] != 0 or np.any(np.diff(starts) <= 0)
+            or starts[-1] >= n or np.any(a['feature'][inner] < 0)
+            or np.any(a['feature'][inner] >= nf)):
         raise DetectorFileError(f'{path}: tree arrays point outside the model')
+    # Every child lies after its parent and inside its own tree, so a walk
+    # from a root always ends at a leaf (no cycle, no jump into another tree).
+    idx = np.arange(n)
+    end = np.append(starts[1:], n)[np.searchsorted(starts, idx, side='right') - 1]
+    for child in (a['left'], a['right']):
+        if np.any((child[inner] <= idx[inner]) | (child[inner] >= end[inner])):
+            raise DetectorFileError(f'{path}: a tree node points back or outside its tree')
     cx, cy = a['calib_x'], a['calib_y']
     if (cx.ndim != 1 or cx.shape != cy.shape or cx.size < 2 or np.any(np.diff(cx) < 0)
             or np.any((cy < 0) | (cy > 1))):
