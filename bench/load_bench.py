@@ -204,24 +204,26 @@ def markdown(runs, command):
     return lines
 
 
-def write_section(lines, path=BENCH):
-    """Put the section into the report, replacing an older one."""
+def write_section(lines, path=BENCH, markers=(START, END)):
+    """Put the section (between ``markers``) into the report, replacing an older one."""
+    start, end = markers
     text = path.read_text(encoding='utf-8') if path.exists() else '# Benchmarks\n'
     block = '\n'.join(lines)
-    if START in text and END in text:
-        a, b = text.index(START), text.index(END) + len(END)
+    if start in text and end in text:
+        a, b = text.index(start), text.index(end) + len(end)
         text = text[:a] + block + text[b:]
     else:
         text = text.rstrip('\n') + '\n\n' + block + '\n'
     path.write_text(text, encoding='utf-8')
 
 
-def carried_section(path=BENCH):
-    """Return the load section of the current report (for ``make bench``), or []."""
+def carried_section(path=BENCH, markers=(START, END)):
+    """Return a section of the current report (for ``make bench``), or []."""
+    start, end = markers
     text = path.read_text(encoding='utf-8') if path.exists() else ''
-    if START not in text or END not in text:
+    if start not in text or end not in text:
         return []
-    return text[text.index(START):text.index(END) + len(END)].splitlines()
+    return text[text.index(start):text.index(end) + len(end)].splitlines()
 
 
 def main(argv=None):

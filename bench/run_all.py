@@ -16,6 +16,7 @@ import time
 
 from bench.bag_bench import bench_bag, markdown as bag_markdown
 from bench.batch_bench import bench_batch, markdown as batch_markdown
+from bench.detector_bench import bench_detector, markdown as detector_markdown
 from bench.explain_speed import bench_explain_speed, markdown as explain_markdown
 from bench.identify_bench import bench_identify, markdown as identify_markdown
 from bench.live_bench import bench_live, markdown as live_markdown
@@ -100,6 +101,7 @@ def main():
     explain = bench_explain_speed()
     loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
     batch = bench_batch(loops) if loops.is_dir() else None
+    detector = bench_detector(best_time, loops) if loops.is_dir() else None
     lines = [
         '# Benchmarks',
         '',
@@ -132,6 +134,8 @@ def main():
     lines += live_markdown(live)
     if batch:
         lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')
+    if detector:
+        lines += [''] + detector_markdown(detector)
     # The load benchmark (make bench-load) takes a quarter of an hour: its section stays.
     carried = carried_section()
     if carried:
