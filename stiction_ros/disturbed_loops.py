@@ -33,31 +33,3 @@ def disturbed_loop(valve, seed, Kc=0.3, Ti=20.0, pv_std=0.02, duration=4000.0,
         'plant.disturbance_steps': loads, 'noise': {'pv_std': pv_std, 'seed': seed},
         **(overrides or {})})
     return simulate_loop(cfg, duration)
-
-
-VALVES = {'kano S=3 J=1': {'model': 'kano', 'S': 3.0, 'J': 1.0},
-          'choudhury S=2 J=1': {'model': 'choudhury', 'S': 2.0, 'J': 1.0},
-          'linear': {'model': 'linear'}}
-TUNINGS = ((0.2, 60.0), (0.3, 20.0), (0.1, 200.0))
-NOISES = (0.02, 0.1)
-
-
-def detection_rates(detector, seeds=range(100, 115), progress=None):
-    """
-    Return {valve: {'found': n, 'runs': n, 'by_tuning': {...}}} of ``detector``.
-
-    ``detector(record)`` returns True when it calls stiction.  Every valve of
-    ``VALVES`` runs at every tuning of ``TUNINGS`` and noise of ``NOISES``
-    for each seed.
-    """
-    out = {}
-    for name, valve in VALVES.items():
-        by = {}
-        for (Kc, Ti) in TUNINGS:
-            for noise in NOISES:
-                hits = [bool(detector(disturbed_loop(valve, s, Kc, Ti, noise))) for s in seeds]
-                by[f'Kc={Kc} Ti={Ti} noise={noise}'] = sum(hits)
-                if progress is not None:
-                    progress(f'{name}, Kc={Kc}, Ti={Ti}, noise {noise}: {sum(hits)}/{len(hits)}')
-        out[name] = {'found': sum(by.values()), 'runs': len(by) * len(seeds), 'by_tuning': by}
-    return out
