@@ -130,6 +130,26 @@ def test_a_missing_or_damaged_model_file_is_a_clear_error(tmp_path):
     np.savez(edited, **arrays)
     with pytest.raises(model_file.DetectorFileError, match='checksum'):
         model_file.load(edited)
+    # Bytes flipped inside a compressed member, and a plain .npy in its place.
+    raw = bytearray(path.read_bytes())
+    for i in range(len(raw) // 3, len(raw) // 3 + 40):
+        raw[i] ^= 0xFF
+    flipped = tmp_path / 'flipped.npz'
+    flipped.write_bytes(bytes(raw))
+    with pytest.raises(model_file.DetectorFileError):
+        model_file.load(flipped)
+    npy = tmp_path / 'plain.npy'
+    np.save(npy, np.zeros(3))
+    with pytest.raises(model_file.DetectorFileError, match='not a readable'):
+        model_file.load(npy)
+    # A NaN leaf behind a recomputed checksum: refused, not a NaN probability.
+    m = model_file.load(path)
+    value = m.value.copy()
+    value[-1] = np.nan
+    nan_file = tmp_path / 'nan.npz'
+    model_file.save(nan_file, model_file.TreeModel(**{**m.__dict__, 'value': value}))
+    with pytest.raises(model_file.DetectorFileError, match='NaN'):
+        model_file.load(nan_file)
 
 
 def test_the_shipped_model_loads_and_matches_the_features():

@@ -242,10 +242,11 @@ def analyze(record, options=None, progress=None):
                          f'{MAX_BRIDGE}) hold the previous value so that the signatures see '
                          f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
     ham = detection = None
-    if not record.has('mv'):
+    if not analysis.fits:
+        # No MV, or an MV no model could be fitted to: OP and PV decide.
         detection = run_detection(record, win, held, integrating, options.detector)
         analysis.detection = detection
-    if (win is not None and options.hammerstein and not record.has('mv')
+    if (win is not None and options.hammerstein and not analysis.fits
             and detection.judge.ok and not detection.period_problem):
         # Sizing needs what judging needs, and a resolvable cycle if there is
         # one: an under-sampled limit cycle aliases into a band 10x too wide.

@@ -43,9 +43,10 @@ def markdown(study: dict) -> str:
         f'Detector: `{meta.get("file")}` version {meta.get("version")}, trained '
         f'{meta.get("date")} on {meta.get("trained_on")}.',
         '',
-        'Positive class = stiction. Balanced accuracy counts `cannot tell` as "no '
-        'stiction" (a refusal earns nothing); the last column scores only the records '
-        'the method decided on.',
+        'Positive class = stiction. On the plant loops balanced accuracy counts `cannot '
+        'tell` as "no stiction" (a refusal earns nothing), and the last column scores '
+        'only the records the method decided on; the simulated set leaves out the records '
+        'that cannot be judged (or whose stiction is hidden under the noise) and lists them.',
         '',
         '## Held out 1: the shared plant loops, by valve tag',
         '',

@@ -16,6 +16,7 @@ import hashlib
 import json
 from pathlib import Path
 import zipfile
+import zlib
 
 import numpy as np
 
@@ -115,6 +116,8 @@ def _check(a: dict, header: dict, path: Path) -> None:
     for child in (a['left'], a['right']):
         if np.any((child[inner] <= idx[inner]) | (child[inner] >= end[inner])):
             raise DetectorFileError(f'{path}: a tree node points back or outside its tree')
+    if not all(np.all(np.isfinite(a[k])) for k in ('value', 'calib_x', 'calib_y')):
+        raise DetectorFileError(f'{path}: NaN or infinity in leaf values or calibration')
     cx, cy = a['calib_x'], a['calib_y']
     if (cx.ndim != 1 or cx.shape != cy.shape or cx.size < 2 or np.any(np.diff(cx) < 0)
             or np.any((cy < 0) | (cy > 1))):
@@ -135,7 +138,9 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
     try:
         with np.load(path, allow_pickle=False) as z:
             a = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, TypeError, AttributeError, zipfile.BadZipFile,
+            zlib.error) as exc:
+        # TypeError/AttributeError: a plain .npy, which np.load returns as one array.
         raise DetectorFileError(f'{path}: not a readable detector file ({exc})') from None
     missing = [k for k in (*ARRAYS, 'header', 'sha256') if k not in a]
     if missing:
@@ -144,6 +149,11 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
         header = json.loads(str(a['header']))
     except ValueError:
         raise DetectorFileError(f'{path}: damaged header') from None
+    if (not isinstance(header, dict) or not isinstance(header.get('feature_names'), list)
+            or not isinstance(header.get('meta'), dict)
+            or not isinstance(header.get('baseline'), (int, float))
+            or not np.isfinite(header['baseline'])):
+        raise DetectorFileError(f'{path}: the header lacks feature_names, baseline or meta')
     if header.get('format') != FORMAT or header.get('version') != VERSION:
         raise DetectorFileError(f'{path}: format {header.get("format")!r} version '
                                 f'{header.get("version")!r}; this code reads {FORMAT} '
