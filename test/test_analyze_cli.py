@@ -185,3 +185,22 @@ def test_a_damaged_detector_file_is_a_clear_error_exit_3(tmp_path):
     assert 'not a readable detector file' in res.stderr and 'Traceback' not in res.stderr
     res = analyze(f, '--detector', tmp_path / 'absent.npz')
     assert res.returncode == 3 and 'make detector' in res.stderr
+
+
+def test_an_mv_no_model_fits_leaves_the_verdict_to_op_and_pv(tmp_path):
+    # OP never moves, so S and J cannot be identified from the MV; the OP/PV
+    # detector then answers, and says why it cannot tell.
+    n = 400
+    rng = np.random.default_rng(3)
+    t = np.arange(n, dtype=float)
+    cols = np.column_stack([t, np.full(n, 50.0), 50.0 + 0.01 * rng.standard_normal(n),
+                            20.0 + 0.1 * rng.standard_normal(n), np.full(n, 20.0)])
+    path = tmp_path / 'flat_op.csv'
+    np.savetxt(path, cols, delimiter=',', header='t,op,mv,pv,sp', comments='')
+    res = analyze(path, '--json', tmp_path / 'r.json')
+    assert res.returncode == 0, res.stderr
+    rep = json.loads((tmp_path / 'r.json').read_text())
+    assert rep['fits'] == [] and any('no model fit' in n_ for n_ in rep['notes'])
+    st = rep['stiction']
+    assert st['answer'] == 'cannot tell'
+    assert st['detector']['judgeable']['code'] == 'no_excitation'

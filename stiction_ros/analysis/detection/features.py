@@ -11,7 +11,7 @@ order; the model file stores it and refuses a different one.
 
 import numpy as np
 
-from stiction_ros.analysis.detection.resolve import period_sanity, robust_noise
+from stiction_ros.analysis.detection.resolve import lag1, period_sanity, robust_noise
 from stiction_ros.analysis.detection.stuck import (
     proxy_change, set_point_steps, SMOOTH, stuck_periods)
 from stiction_ros.analysis.signatures.all import compute_signatures
@@ -40,12 +40,6 @@ def _value(sig) -> float:
 def _noise_share(x: np.ndarray) -> float:
     sd = float(np.std(x))
     return min(1.0, robust_noise(x) / sd) if sd > 0 else 1.0
-
-
-def _lag1(x: np.ndarray) -> float:
-    x = x - x.mean()
-    den = float(x @ x)
-    return float(x[1:] @ x[:-1]) / den if den > 0 else 0.0
 
 
 def _error_bias(error: np.ndarray, sigma: float, w: int = 50) -> float:
@@ -158,7 +152,7 @@ def extract(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: 
         'slips_per_100': st.jump_rate, 'slips_after_stuck': st.slips_after_stuck,
         'pv_jump_kurtosis': kurt, 'pv_log_max_jump': max_jump,
         'pv_noise_share': _noise_share(pv), 'op_noise_share': _noise_share(op),
-        'error_lag1': _lag1(error), 'error_bias': _error_bias(error, pv_sig),
+        'error_lag1': lag1(error), 'error_bias': _error_bias(error, pv_sig),
         'op_ramp_share': _ramp_share(op, robust_noise(op)),
         'op_saturated': float(np.mean((op <= 0.5) | (op >= 99.5))),
         'sp_steps_per_100': 100.0 * len(set_point_steps(sp_arr, pv_sig)) / n,

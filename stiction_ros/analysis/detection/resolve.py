@@ -26,8 +26,8 @@ import numpy as np
 
 from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
 
-__all__ = ['cycle_judgeable', 'Judgeable', 'judgeable', 'MIN_PERIOD_SAMPLES', 'MIN_SAMPLES',
-           'period_sanity', 'robust_noise']
+__all__ = ['cycle_judgeable', 'Judgeable', 'judgeable', 'lag1', 'MIN_PERIOD_SAMPLES',
+           'MIN_SAMPLES', 'period_sanity', 'robust_noise']
 
 MIN_SAMPLES = 200
 # Distinct-value and spread floors that separate a frozen signal from a quiet one.
@@ -66,7 +66,8 @@ def _frozen(x: np.ndarray) -> bool:
             or float(np.ptp(x)) <= RELATIVE_FLOOR * scale or float(np.ptp(x)) < 1e-30)
 
 
-def _lag1(x: np.ndarray) -> float:
+def lag1(x: np.ndarray) -> float:
+    """Return the lag-1 autocorrelation of ``x`` about its mean (0 for a constant)."""
     x = x - x.mean()
     den = float(np.dot(x, x))
     return float(np.dot(x[1:], x[:-1]) / den) if den > 0 else 0.0
@@ -90,7 +91,7 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float) -> Judgeable:
                          f'OP never moved more than {float(np.ptp(op)):.3g} % (manual mode or '
                          f'saturated?): the valve was never asked to move')
     d_op, d_pv = np.diff(op), np.diff(pv)
-    if _lag1(d_op) < ALTERNATING - 0.2 and _lag1(pv - np.mean(pv)) < ALTERNATING:
+    if lag1(d_op) < ALTERNATING - 0.2 and lag1(pv - np.mean(pv)) < ALTERNATING:
         return Judgeable(False, 'under_sampled',
                          f'OP and PV alternate from sample to sample: the loop cycles faster '
                          f'than 2-3 samples of {sample_time:g} s, so stick-slip cannot be '
