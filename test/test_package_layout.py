@@ -58,6 +58,18 @@ def test_colcon_build_gives_the_ament_layout(colcon_install):
         assert path.is_file() and os.access(path, os.X_OK), path
 
 
+def test_the_install_carries_the_stiction_detector_and_loads_it(colcon_install, tmp_path):
+    site = next((colcon_install / 'lib').glob('python3*/site-packages'))
+    assert (site / 'stiction_ros/resources/stiction_detector.npz').is_file()
+    code = ('import stiction_ros.analysis.detection as d; m = d.load_model(); '
+            'print(d.model_file.DEFAULT_PATH, len(m.tree_start))')
+    run = subprocess.run([sys.executable, '-c', code], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(site)))
+    assert run.returncode == 0, run.stderr
+    # Read from the install, not from the source tree.
+    assert str(site) in run.stdout and int(run.stdout.split()[-1]) > 0
+
+
 def test_installed_executable_runs_as_ros2_run_would_find_it(colcon_install, tmp_path):
     # `ros2 run PKG EXE` = ament index lookup of PKG's prefix, then PREFIX/lib/PKG/EXE.
     site = next((colcon_install / 'lib').glob('python3*/site-packages'))
