@@ -41,8 +41,6 @@ class StuckResult:
     stuck_op_share: float = 0.0    # share of OP's total travel made while stuck
     slips_after_stuck: float = 0.0  # share of slips that end a stuck period
     jump_rate: float = 0.0         # slips per 100 samples
-    proxy_sigma: float = 0.0
-    op_sigma: float = 0.0
 
     def to_json(self, sample_time: float) -> dict:
         """Return the evidence in seconds, for the report."""
@@ -148,7 +146,7 @@ def stuck_periods(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     quiet = np.ones(n, dtype=bool)
     for k in set_point_steps(sp, robust_noise(pv)):
         quiet[k:k + SP_QUIET] = False
-    res = StuckResult(proxy_sigma=scale, op_sigma=op_sig)
+    res = StuckResult()
     travel_total = float(np.sum(np.abs(np.diff(ops)))) or 1e-12
     stuck_travel = 0.0
     # A valve at rest leaves the proxy inside its noise for the whole stretch,
