@@ -57,6 +57,40 @@ def _params(values):
     return _e(', '.join(f'{k} {_num(v)}' for k, v in values.items()))
 
 
+def _chain_parts(report):
+    # The frictionless baseline and the friction chains, and the tests between them.
+    m = report['mismatch']
+    out = []
+    if m.get('effects'):
+        rows = [[_e(e['id']), _num(e.get('size')), _e(e.get('unit', '')),
+                 _num(e.get('uncertainty')), _e(e['sentence'])] for e in m['effects']]
+        out += ['<h3>Effects kept</h3>',
+                _table(['effect', 'size', 'unit', 'standard error', 'what it means'], rows)]
+    chains = [('no friction', report.get('frictionless'))] + [
+        (k, v) for k, v in report.get('chains', {}).items()]
+    rows = [[_e(name), _num(c['S']), _num(c['J']), _num(c['dead_time_s']), _num(c['lag_s']),
+             _num(c['offset']), _num(c['gain']), _e(', '.join(c['stages']) or '-'),
+             _num(c['mse_fit']), _num(c['mse_holdout'])] for name, c in chains if c]
+    if rows:
+        out += ['<h3>The valve through its instruments: best chain of each kind</h3>',
+                _table(['friction', 'S (%)', 'J (%)', 'dead time (s)', 'lag (s)',
+                        'offset (%)', 'gain', 'stages kept', 'MSE fit', 'MSE held-out'], rows)]
+    rows = [[_e(k.replace('_', ' ')), _num(v.get('lr')), _num(v.get('threshold')),
+             _num(v.get('rho'), 3),
+             _num(v.get('heldout_gain'), 3), _num(v.get('heldout_p'), 3),
+             'yes' if v['wins'] else 'no'] for k, v in report.get('friction_tests', {}).items()]
+    if rows:
+        out += ['<p>Friction is present only where a friction chain beats the best chain '
+                'without friction on the fitted part (likelihood ratio on the effective '
+                'sample size) and on the held-out part (paired block bootstrap, p &lt; '
+                '0.01); it is stiction when the final friction model (its effects included) '
+                'needs the slip jump J on the fitted part and beats that chain held out '
+                'too.</p>',
+                _table(['test', 'LR', 'threshold', 'residual lag-1', 'held-out MSE gain',
+                        'held-out p', 'passes'], rows)]
+    return out
+
+
 def _mismatch_parts(report):
     # The --explain sections: the answer first, then what it rests on.
     m, b, h = report['mismatch'], report['baseline'], report.get('holdout', {})
@@ -71,6 +105,7 @@ def _mismatch_parts(report):
            f'<p>Held out: samples from {_e(h.get("first_sample"))} on (t &ge; '
            f'{_num(h.get("t_start"))} s, {_e(h.get("holdout_samples"))} samples), used for '
            'nothing but the held-out MSE.</p>']
+    out += _chain_parts(report)
     rows = [[_e(c['effect']), _params(c['params']),
              _num(c['S']), _num(c['J']), _num(c['mse_fit']), _num(c['mse_holdout']),
              _num(c.get('lr')), _num(c.get('threshold')), _num(c['score'], 3)]
@@ -136,7 +171,11 @@ def render(report, figures):
                 for name, s in sigs.items()]
         parts += ['<h2>Signatures (OP and PV only)</h2>',
                   _table(['signature', 'value', 'threshold', 'decision', 'why'], rows)]
-    if report.get('mismatch'):
+    if report.get('mismatch') and 'baseline' not in report:
+        parts += ['<h2>Why the model misses (--explain)</h2>',
+                  f'<p class="verdict">cannot tell</p><p>{_e(report["mismatch"]["explanation"])}'
+                  '</p>']
+    elif report.get('mismatch'):
         parts += _mismatch_parts(report)
     ham = st.get('hammerstein')
     if ham:

@@ -189,19 +189,27 @@ def run_analysis(args, say):
 
 def run_explain(analysis, args, say):
     """Add the ``--explain`` sections to the report of ``analysis``."""
-    from stiction_ros.analysis.mismatch.explain import explain
+    from stiction_ros.analysis.mismatch.decide import explain_record
     rec = analysis.record
     if not rec.has('mv'):
-        raise ValueError('--explain needs the valve position (mv): the mismatch is measured '
-                         'between the model and the measured MV')
+        # Not an input error: the rest of the report stands, and says why this part cannot.
+        analysis.report['mismatch'] = {
+            'effect': 'cannot_tell', 'effects': [], 'friction': None, 'reason': 'no_mv',
+            'explanation': (
+                'Cannot explain a mismatch without the valve position (MV): with OP and PV '
+                'alone, dead time, lag and calibration of the valve cannot be told from the '
+                "plant's own dynamics, so no effect can be located or named. Record the "
+                'positioner feedback (or a flow right after the valve) and run --explain '
+                'again; the stiction verdict above is what OP and PV can say.')}
+        return
     if args.bootstrap < 0:
         raise ValueError(f'--bootstrap must be 0 or more, got {args.bootstrap}')
     from stiction_ros.cli.batch import default_jobs
     jobs = args.jobs if getattr(args, 'jobs', None) is not None else default_jobs()
-    sections, arrays = explain(rec.t, rec.signals['op'], rec.signals['mv'],
-                               rec.valve_segments(min_samples=2), rec.sample_time,
-                               holdout=args.holdout, reps=args.bootstrap, progress=say,
-                               jobs=max(1, jobs))
+    sections, arrays = explain_record(rec.t, rec.signals['op'], rec.signals['mv'],
+                                      rec.valve_segments(min_samples=2), rec.sample_time,
+                                      holdout=args.holdout, reps=args.bootstrap,
+                                      progress=say, jobs=max(1, jobs))
     analysis.report.update(sections)
     analysis.explain_arrays = arrays
 
@@ -260,7 +268,9 @@ def summary_line(report):
         line += f'\n  evidence: {ev}'
     if st.get('size_withheld'):
         line += f'\n  no size given: {st["size_withheld"]}'
-    if 'mismatch' in report:
+    if 'mismatch' in report and 'baseline' not in report:
+        line += f'\nmismatch: cannot tell: {report["mismatch"]["explanation"]}'
+    elif 'mismatch' in report:
         m, b = report['mismatch'], report['baseline']
         line += f'\nplain model: kano S={b["S"]:.3f} J={b["J"]:.3f} MSE fit {b["mse_fit"]:.4g}'
         if m.get('regimes'):
@@ -271,10 +281,34 @@ def summary_line(report):
             g = m['regions'][0]
             line += (f'; worst stretch t={g["t_start"]:.0f}-{g["t_end"]:.0f} s ({g["regime"]}, '
                      f'{100 * g["residual_share"]:.0f} % of the residual)')
-        line += (f'\nmismatch: {m["effect"]} (confidence {m["confidence"]:.2f}): '
-                 f'{m["explanation"]}\nheld-out MSE: plain {b["mse_holdout"]:.4g} -> '
-                 f'explained {m["mse_holdout"]:.4g}')
+        line += _chain_lines(report)
+        names = [e['id'] for e in m.get('effects', [])]
+        told = ' '.join(e['sentence'] for e in m['effects']) if names else m['explanation']
+        line += (f'\nmismatch: {", ".join(names) or m["effect"]} (confidence '
+                 f'{m["confidence"]:.2f}): {told}\nheld-out MSE: plain '
+                 f'{b["mse_holdout"]:.4g} -> explained {m["mse_holdout"]:.4g}')
+        if m.get('note'):
+            line += f'\nnote: {m["note"]}'
+        if report['stiction'].get('detected') and m.get('friction') is False:
+            line += ('\nnote: the stiction verdict above comes from valve models without dead '
+                     'time or calibration; no friction beats the best valve without friction '
+                     'here')
     return line
+
+
+FRICTION_WORDS = {'stiction': 'stiction claimed', 'backlash': 'backlash (play without stick)',
+                  'none': 'not claimed'}
+
+
+def _chain_lines(report):
+    f = report.get('frictionless')
+    if not f:
+        return ''
+    kind = report['mismatch'].get('friction_kind', 'none')
+    return (f'\nbest valve without friction: dead time {f["dead_time_s"]:.3g} s, lag '
+            f'{f["lag_s"]:.3g} s, offset {f["offset"]:+.3g} %, gain {f["gain"]:.4g} (stages '
+            f'kept: {", ".join(f["stages"]) or "none"}), held-out MSE {f["mse_holdout"]:.4g}'
+            f'\nfriction: {FRICTION_WORDS[kind]}')
 
 
 def main(argv=None):

@@ -146,12 +146,14 @@ def _mse(a, b, mask):
 
 
 def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, seed=0,
-            progress=None, jobs=1):
+            progress=None, jobs=1, calibrated=None):
     """
     Return the ``--explain`` report sections (a dict) and the arrays behind the figures.
 
     ``segments``: the valid stretches (start, stop) of the record; ``jobs``: threads
-    for the candidate fits (the result does not depend on it).
+    for the candidate fits (the result does not depend on it).  ``calibrated``:
+    (largest LR per effect, residual autocorrelations) of an earlier run's
+    replicates of the same valve, reused instead of new replicates.
     """
     t0 = time.perf_counter()
     op = np.asarray(op, dtype=np.float64)
@@ -170,13 +172,18 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
     n_used = problem.n
     # The bootstrap's effect-free replicates, refitted from scratch like the record;
     # then every candidate on every one of them, side by side on ``jobs`` threads.
+    if calibrated is not None:
+        reps = 0
     ys = replicates(op, mv, fit_segments, base, plain_sse, n_used, reps, seed)
     records = [prepared] + [prepare(op, y, fit_segments, sample_time) for y in ys]
     labels = [''] + [f'bootstrap {r + 1}/{reps}: ' for r in range(reps)]
     all_fits = fit_many(records, jobs, say, labels)
     fits = all_fits[0]
     stats = {f.effect: lr(n_used, plain_sse, f.sse) for f in fits}
-    worst, acfs = calibrate(op, fit_segments, list(zip(ys, records[1:], all_fits[1:])))
+    if calibrated is None:
+        worst, acfs = calibrate(op, fit_segments, list(zip(ys, records[1:], all_fits[1:])))
+    else:
+        worst, acfs = dict(calibrated[0]), list(calibrated[1])
     thresholds = {e.eid: max(CHI2_999[len(e.names)], MARGIN * worst[e.eid]) for e in EFFECTS}
 
     valid = np.zeros(n, dtype=bool)

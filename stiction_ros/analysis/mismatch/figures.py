@@ -18,6 +18,9 @@ def mismatch_figure(report, arrays, path):
     r1 = mv - a['mv_explained']
     m = report['mismatch']
     ax[0, 0].plot(t, r0, color='0.5', lw=0.5, label='plain model')
+    if 'mv_frictionless' in a:
+        ax[0, 0].plot(t, mv - a['mv_frictionless'], color='tab:purple', lw=0.5, alpha=0.6,
+                      label='best valve without friction')
     if m['effect'] not in ('none', 'unexplained'):
         ax[0, 0].plot(t, r1, color='tab:green', lw=0.5, alpha=0.8, label=m['model']['name'])
     for reg in m['regions']:
@@ -44,27 +47,53 @@ def mismatch_figure(report, arrays, path):
     ax[0, 1].set_title('breakaway events of the plain model', fontsize=9)
     ax[2, 0].plot(op, mv, color='0.75', lw=0.4, label='measured')
     ax[2, 0].plot(op, a['mv_baseline'], color='k', lw=0.7, label='plain')
+    if 'mv_frictionless' in a:
+        ax[2, 0].plot(op, a['mv_frictionless'], color='tab:purple', lw=0.6, alpha=0.7,
+                      label='without friction')
     if m['effect'] not in ('none', 'unexplained'):
         ax[2, 0].plot(op, a['mv_explained'], color='tab:green', lw=0.7, label='explained')
     ax[2, 0].set_xlabel('OP (%)')
     ax[2, 0].set_ylabel('MV (%)')
     ax[2, 0].set_title('MV-OP map before and after', fontsize=9)
     ax[2, 0].legend(fontsize=7)
-    cands = report['candidates']
-    names = [c['effect'] for c in cands]
-    y = np.arange(len(cands))
-    ax[2, 1].barh(y, [max(c['score'], 1e-3) for c in cands],
-                  color=['tab:green' if c['effect'] == m['effect'] else '0.6' for c in cands])
-    ax[2, 1].axvline(1.0, color='k', ls='--', lw=0.8)
-    ax[2, 1].set_yticks(y, names, fontsize=7)
-    ax[2, 1].set_xscale('log')
-    ax[2, 1].invert_yaxis()
-    ax[2, 1].set_xlabel('LR / bootstrap threshold (> 1 accepts)')
-    ax[2, 1].set_title('candidates', fontsize=9)
+    if report['candidates']:
+        _candidate_panel(ax[2, 1], report)
+    else:
+        _chain_panel(ax[2, 1], report)
     b = report['baseline']
-    fig.suptitle(f'{m["effect"]}: held-out MSE {b["mse_holdout"]:.4g} (plain) -> '
+    names = ', '.join(e['id'] for e in m.get('effects', [])) or m['effect']
+    fig.suptitle(f'{names}: held-out MSE {b["mse_holdout"]:.4g} (plain) -> '
                  f'{m["mse_holdout"]:.4g}\n{m["explanation"]}', fontsize=9, wrap=True)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
+
+
+def _candidate_panel(axis, report):
+    m, cands = report['mismatch'], report['candidates']
+    y = np.arange(len(cands))
+    axis.barh(y, [max(c['score'], 1e-3) for c in cands],
+              color=['tab:green' if c['effect'] == m['effect'] else '0.6' for c in cands])
+    axis.axvline(1.0, color='k', ls='--', lw=0.8)
+    axis.set_yticks(y, [c['effect'] for c in cands], fontsize=7)
+    axis.set_xscale('log')
+    axis.invert_yaxis()
+    axis.set_xlabel('LR / bootstrap threshold (> 1 accepts)')
+    axis.set_title('friction candidates', fontsize=9)
+
+
+def _chain_panel(axis, report):
+    # No friction claimed, so no friction candidates: the chains' held-out fits instead.
+    rows = [('plain Kano', report['baseline']['mse_holdout'])]
+    if report.get('frictionless'):
+        rows.append(('no friction', report['frictionless']['mse_holdout']))
+    rows += [(k, v['mse_holdout']) for k, v in report.get('chains', {}).items()]
+    rows = [(k, v) for k, v in rows if v is not None and np.isfinite(v) and v > 0]
+    y = np.arange(len(rows))
+    axis.barh(y, [v for _, v in rows], color='0.6')
+    axis.set_yticks(y, [k for k, _ in rows], fontsize=7)
+    axis.set_xscale('log')
+    axis.invert_yaxis()
+    axis.set_xlabel('held-out MSE')
+    axis.set_title('best valve of each kind, held-out part', fontsize=9)

@@ -1,0 +1,429 @@
+"""
+The valve seen through its instruments: dead time, lags, calibration, backlash, stiction.
+
+A recorded valve position differs from a simulated one first through timing
+and instruments, before any friction: the position may follow OP a second
+late, through an actuator or transmitter lag, read 2 % high.  So every
+explanation starts from a *chain* whose every stage reduces to nothing at its
+null value::
+
+    OP -> dead time d -> friction (none | backlash | stiction) -> lag tau
+       -> second lag tau2 -> offset + gain * position -> MV reading
+
+``d``, ``tau`` and ``tau2`` are in samples (``d`` fractional: a sample
+misalignment is a dead time under one sample).  Backlash is Kano's model with
+J = 0 (play that moves smoothly once taken up); stiction is Kano's (S, J).
+The frictionless chain is linear in offset and gain, which are solved in
+closed form for every (d, tau, tau2) tried.
+"""
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+from scipy.signal import lfilter
+
+from stiction_ros.analysis.identify import identify, plausible_box
+from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.analysis.mismatch.fit import local_sj, Problem, RESOLUTION, start_positions
+
+COMPONENTS = ('delay', 'tau', 'tau2', 'offset', 'gain')
+NULL = {'delay': 0.0, 'tau': 0.0, 'tau2': 0.0, 'offset': 0.0, 'gain': 1.0}
+FRICTION_PARAMS = {'none': 0, 'backlash': 1, 'stiction': 2}
+# Smallest sizes worth a sentence: below them a stage is noise-fitting, however
+# significant (a 0.05-sample dead time is a clock detail, not an actuator).
+PLAUSIBLE = {'delay': 0.1, 'tau': 0.2, 'tau2': 0.2, 'offset': 0.1, 'gain': 0.005}
+# Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
+# an actuator a minute late is a broken loop, not a calibration question.
+MAX_DELAY = (20.0, 30.0)
+MAX_LAG = (60.0, 120.0)
+SEARCH_RESOLUTION = 0.01
+LAG_TRIES = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0)
+TAU_GRID = (0.0, 0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.0, 9.0, 14.0, 20.0, 30.0, 45.0, 60.0)
+
+
+@dataclass
+class ChainFit:
+    """One chain fitted on the fitted part: its friction, stages, S, J and SSE."""
+
+    friction: str
+    params: dict
+    S: float
+    J: float
+    sse: float
+    n: int
+    free: tuple
+    se: dict = field(default_factory=dict)
+
+    @property
+    def k(self) -> int:
+        """Return the number of fitted parameters."""
+        return len(self.free) + FRICTION_PARAMS[self.friction]
+
+    @property
+    def mse(self) -> float:
+        """Mean squared error on the fitted part."""
+        return self.sse / self.n
+
+
+def limits(sample_time: float) -> tuple[float, float]:
+    """Return the largest dead time and lag (samples) looked for at ``sample_time``."""
+    return (min(MAX_DELAY[0], MAX_DELAY[1] / sample_time),
+            min(MAX_LAG[0], MAX_LAG[1] / sample_time))
+
+
+def shift(x: np.ndarray, d: float, segments) -> np.ndarray:
+    """Return ``x`` delayed by ``d`` samples (linear interpolation) within each segment."""
+    out = np.array(x, dtype=np.float64, copy=True)
+    if d == 0.0:
+        return out
+    for a, b in segments:
+        # A negative d (a fraction of a sample) reads ahead; the last value is held.
+        pos = np.clip(np.arange(b - a) - d, 0.0, b - a - 1)
+        i0 = np.floor(pos).astype(np.int64)
+        frac = pos - i0
+        i1 = np.minimum(i0 + 1, b - a - 1)
+        seg = np.asarray(x[a:b], dtype=np.float64)
+        out[a:b] = seg[i0] * (1.0 - frac) + seg[i1] * frac
+    return out
+
+
+def lag(x: np.ndarray, tau: float, segments) -> np.ndarray:
+    """Return ``x`` through a first-order lag of ``tau`` samples, at rest at each segment start."""
+    out = np.array(x, dtype=np.float64, copy=True)
+    if tau <= 0.0:
+        return out
+    p = math.exp(-1.0 / tau)
+    for a, b in segments:
+        out[a:b], _ = lfilter([1.0 - p], [1.0, -p], out[a:b], zi=[p * out[a]])
+    return out
+
+
+def affine(y: np.ndarray, mv: np.ndarray, idx: np.ndarray, offset: bool,
+           gain: bool) -> tuple[float, float, float]:
+    """Return (offset, gain, SSE) of the least-squares ``mv = offset + gain * y`` on ``idx``."""
+    yy, mm = y[idx], mv[idx]
+    if offset and gain:
+        a = np.column_stack([np.ones(len(yy)), yy])
+        (c0, c1), *_ = np.linalg.lstsq(a, mm, rcond=None)
+    elif offset:
+        c0, c1 = float(np.mean(mm - yy)), 1.0
+    elif gain:
+        den = float(yy @ yy)
+        c0, c1 = 0.0, (float(yy @ mm) / den if den > 0 else 1.0)
+    else:
+        c0, c1 = 0.0, 1.0
+    r = mm - c0 - c1 * yy
+    return float(c0), float(c1), float(r @ r)
+
+
+def indices(segments) -> np.ndarray:
+    """Return the sample indices covered by ``segments``."""
+    return np.concatenate([np.arange(a, b) for a, b in segments])
+
+
+def friction_output(u: np.ndarray, segments, S: float, J: float, y: np.ndarray) -> np.ndarray:
+    """Return Kano's position for input ``u`` over ``segments``, started at rest at ``y``."""
+    out = np.full(len(u), np.nan)
+    starts = np.array([a for a, _ in segments], dtype=np.int64)
+    stops = np.array([b for _, b in segments], dtype=np.int64)
+    y0s = start_positions(np.asarray(y, dtype=np.float64), starts, stops)
+    kk.kano_effects_output(np.ascontiguousarray(u, dtype=np.float64), starts, stops, y0s,
+                           float(S), float(J), kk.plain_params(), out, np.zeros(len(u)))
+    return out
+
+
+def split_delay(d: float) -> tuple[float, float]:
+    """
+    Return (nearest whole samples, the rest, within half a sample either way).
+
+    A friction chain delays OP by the whole samples and its position by the
+    rest: a reading taken a fraction of a sample off the OP's clock blends the
+    samples around a slip, which a delay of OP by a fraction cannot do.
+    """
+    whole = float(round(d))
+    return whole, d - whole
+
+
+def chain_output(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit) -> np.ndarray:
+    """Return the MV reading ``fit`` predicts over ``segments`` (NaN elsewhere)."""
+    p = fit.params
+    before = fit.friction != 'none' and p.get('lag_before', 0.0) > 0.0
+    if fit.friction != 'none':
+        whole, frac = split_delay(p['delay'])
+        u = shift(op, whole, segments)
+        # The friction model starts where the valve is: the reading, calibration undone.
+        y0 = (np.asarray(mv, dtype=np.float64) - p['offset']) / (p['gain'] or 1.0)
+        u = friction_output(lag(u, p['tau'], segments) if before else u, segments, fit.S,
+                            fit.J, y0)
+        u = shift(u, frac, segments)
+    else:
+        u = shift(op, p['delay'], segments)
+    y = lag(lag(u, 0.0 if before else p['tau'], segments), p['tau2'], segments)
+    out = np.full(len(op), np.nan)
+    idx = indices(segments)
+    out[idx] = p['offset'] + p['gain'] * y[idx]
+    return out
+
+
+def _frictionless_sse(op, mv, segments, idx, d, tau, tau2, free):
+    y = lag(lag(shift(op, d, segments), tau, segments), tau2, segments)
+    return affine(y, mv, idx, 'offset' in free, 'gain' in free)
+
+
+def fit_frictionless(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
+                     free=COMPONENTS) -> ChainFit:
+    """
+    Return the best frictionless chain with the stages in ``free`` (the others at null).
+
+    A grid over dead time (quarter samples) and lag, then a bounded Powell
+    search from the best grid point; offset and gain are solved in closed form.
+    """
+    op = np.asarray(op, dtype=np.float64)
+    mv = np.asarray(mv, dtype=np.float64)
+    idx = indices(segments)
+    d_max, tau_max = limits(sample_time)
+    d_axis = np.arange(0.0, d_max + 1e-9, 0.25) if 'delay' in free else np.zeros(1)
+    t_axis = [t for t in TAU_GRID if t <= tau_max] if 'tau' in free else [0.0]
+    best = (math.inf, 0.0, 0.0, 0.0)
+    for d in d_axis:
+        for tau in t_axis:
+            sse = _frictionless_sse(op, mv, segments, idx, d, tau, 0.0, free)[2]
+            if sse < best[0]:
+                best = (sse, float(d), float(tau), 0.0)
+    names = [c for c in ('delay', 'tau', 'tau2') if c in free]
+    if names:
+        bounds = {'delay': (0.0, d_max), 'tau': (0.0, tau_max), 'tau2': (0.0, tau_max)}
+        start = {'delay': best[1], 'tau': best[2], 'tau2': 0.3 * best[2]}
+
+        def cost(theta):
+            v = {**NULL, **dict(zip(names, theta))}
+            return _frictionless_sse(op, mv, segments, idx, v['delay'], v['tau'], v['tau2'],
+                                     free)[2]
+        res = minimize(cost, [start[c] for c in names], method='Powell',
+                       bounds=[bounds[c] for c in names],
+                       options={'xtol': 1e-3, 'ftol': 1e-9, 'maxfev': 400})
+        if res.fun < best[0]:
+            v = {**NULL, **dict(zip(names, res.x))}
+            best = (float(res.fun), v['delay'], v['tau'], v['tau2'])
+    _, d, tau, tau2 = best
+    c0, c1, sse = _frictionless_sse(op, mv, segments, idx, d, tau, tau2, free)
+    params = {'delay': d, 'tau': tau, 'tau2': tau2, 'offset': c0, 'gain': c1}
+    stages = tuple(c for c in COMPONENTS if c in free)
+    return ChainFit('none', params, 0.0, 0.0, sse, len(idx), stages)
+
+
+def _friction_at(op, mv, segments, idx, d, friction, free, box, start, tau=0.0, near=None,
+                 polish=True, before=False):
+    """
+    Return (sse, S, J, offset, gain) of a friction chain at dead time ``d`` and lag ``tau``.
+
+    Without a lag, stiction's (S, J) come from ``identify``; with one, from a
+    coarse-to-fine search of the effects kernel with its lag after the
+    friction, around ``near`` (the lag-free fit's S and J).  Offset and gain
+    alternate with (S, J) twice when ``polish``, else once at a coarser grid
+    (the searches over dead time and lag compare many such points).
+    """
+    whole, frac = split_delay(d)
+    u = shift(op, whole, segments)
+    p_lag = _lagged_params(tau, before)
+    c0, c1 = start
+    best = None
+    calibrated = 'offset' in free or 'gain' in free
+    for _ in range(2 if calibrated and polish else 1):
+        y = (mv - c0) / (c1 or 1.0)
+        if friction == 'stiction' and tau <= 0.0:
+            f = identify(u, y, 'kano', segments=segments,
+                         resolution=RESOLUTION if polish else SEARCH_RESOLUTION,
+                         interval=False)
+            S, J = f.S, f.J
+        elif friction == 'stiction':
+            S, J = _stiction_lagged(u, y, segments, p_lag, near, box, polish)
+        else:
+            S, J = _backlash_s(u, y, segments, box[0], p_lag), 0.0
+        if before:
+            pos = friction_output(lag(u, tau, segments), segments, S, J, y)
+        else:
+            pos = lag(friction_output(u, segments, S, J, y), tau, segments)
+        pos = shift(pos, frac, segments)
+        c0, c1, sse = affine(pos, mv, idx, 'offset' in free, 'gain' in free)
+        if best is None or sse < best[0]:
+            best = (sse, S, J, c0, c1)
+    return best
+
+
+def _lagged_params(tau, before=False):
+    # The effects kernel's lags: A_IN on OP before the friction, B_OUT on the position.
+    p = kk.plain_params()
+    p[kk.A_IN if before else kk.B_OUT] = math.exp(-1.0 / tau) if tau > 0.0 else 0.0
+    return p
+
+
+def _stiction_lagged(u, y, segments, p_lag, near, box, polish=True):
+    problem = Problem(u, y, [a for a, _ in segments], [b for _, b in segments])
+    s0, j0 = near if near is not None else (0.5 * box[0], 0.25 * box[0])
+    half = max(s0, 1.0)
+    _, S, J = local_sj(problem, p_lag, s0, j0, half, half, points=13,
+                       j_max=s0 + half, levels=math.inf if polish else 2)
+    return float(S), float(J)
+
+
+def _backlash_s(u, y, segments, s_max, p):
+    problem = Problem(u, y, [a for a, _ in segments], [b for _, b in segments])
+    j = np.zeros(1)
+    s_axis = np.linspace(0.0, max(s_max, 0.1), 41)
+    scores = problem.grid(s_axis, j, p)[:, 0]
+    s0 = float(s_axis[int(np.argmin(scores))])
+    step = s_axis[1] - s_axis[0]
+    while step > RESOLUTION:
+        axis = np.clip(s0 + step * np.linspace(-1.0, 1.0, 9), 0.0, None)
+        scores = problem.grid(axis, j, p)[:, 0]
+        s0 = float(axis[int(np.argmin(scores))])
+        step /= 4.0
+    return s0
+
+
+def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
+                 friction: str = 'stiction', free=('delay', 'tau', 'offset', 'gain'),
+                 hint: ChainFit | None = None, delay: float | None = None) -> ChainFit:
+    """
+    Return the best chain with ``friction`` ('stiction' or 'backlash') and stages ``free``.
+
+    Dead time: whole samples upwards from none until two in a row do worse,
+    then half and quarter samples around the best (``delay`` fixes it
+    instead).  Lag: a few values before the friction (an actuator) and after
+    it (a transmitter), with no dead time and with the best, then refined.
+    ``hint``, the frictionless fit, gives a second start for offset and gain
+    beside the ideal 0 and 1.  The search compares points on a coarse grid;
+    the best is fitted again finely.
+    """
+    op = np.asarray(op, dtype=np.float64)
+    mv = np.asarray(mv, dtype=np.float64)
+    idx = indices(segments)
+    box = plausible_box(op[idx], mv[idx])
+    d_max, tau_max = limits(sample_time)
+    d0 = 0.0 if delay is None else float(delay)
+    starts = [(0.0, 1.0)]
+    if hint is not None and ('offset' in free or 'gain' in free):
+        starts.append((hint.params['offset'] if 'offset' in free else 0.0,
+                       hint.params['gain'] if 'gain' in free else 1.0))
+    firsts = [_friction_at(op, mv, segments, idx, d0, friction, free, box, st, polish=False)
+              for st in starts]
+    start = starts[min(range(len(firsts)), key=lambda i: firsts[i][0])]
+    # Keys: (dead time, lag, lag before the friction).
+    tried = {(d0, 0.0, False): min(firsts, key=lambda r: r[0])}
+
+    def at(d, tau=0.0, before=False, near=None):
+        key = (float(d), float(tau), bool(before and tau > 0.0))
+        if key not in tried and 0.0 <= d <= d_max and tau <= tau_max:
+            tried[key] = _friction_at(op, mv, segments, idx, d, friction, free, box, start,
+                                      tau, near, polish=False, before=key[2])
+        return tried.get(key, (math.inf,))
+
+    def best_key(tau=None, before=None):
+        keys = [k for k in tried if (tau is None or k[1] == tau)
+                and (before is None or k[2] == before)]
+        return min(keys, key=lambda k: tried[k][0])
+
+    timed = delay is None and 'delay' in free
+    if timed:
+        worse = 0
+        for d in np.arange(1.0, d_max + 1e-9, 1.0):
+            worse = worse + 1 if at(d)[0] > tried[best_key()][0] else 0
+            if worse >= 2:
+                break
+        _refine_delay(at, best_key, 0.0, False)
+    if 'tau' in free:
+        # A lag hides the slip jump (a stiction valve read through 3 s of lag fits as
+        # J = 0 without it) and a lag-free fit mimics it with a dead time; so lags are
+        # tried with no dead time and with the lag-free best, then refined.
+        d_free = best_key(0.0)[0]
+        for d in sorted({d0, d_free}):
+            near = tried[(d, 0.0, False)][1:3]
+            for tau in LAG_TRIES:
+                for before in (False, True):
+                    at(d, tau, before, near)
+        d, tau, before = best_key()
+        if tau > 0.0:
+            near = tried[(d, tau, before)][1:3]
+            for t2 in (0.7 * tau, 1.4 * tau):
+                at(d, t2, before, near)
+            d, tau, before = best_key()
+            if timed:
+                _refine_delay(at, best_key, tau, before, near)
+    d, tau, before = best_key()
+    near = tried[(d, tau, before)][1:3]
+    if timed:
+        # Between quarter samples: a dead time a tenth of a sample off leaves a residual
+        # that a quiet record reads as a lag.
+        res = minimize_scalar(lambda x: _friction_at(op, mv, segments, idx, x, friction, free,
+                                                     box, start, tau, near, polish=False,
+                                                     before=before)[0],
+                              bounds=(max(d - 0.25, 0.0), min(d + 0.25, d_max)),
+                              method='bounded', options={'xatol': 0.02, 'maxiter': 12})
+        if res.fun < tried[(d, tau, before)][0]:
+            d = float(res.x)
+    sse, S, J, c0, c1 = _friction_at(op, mv, segments, idx, d, friction, free, box, start,
+                                     tau, near, polish=True, before=before)
+    params = {**NULL, 'delay': d, 'tau': tau, 'offset': c0, 'gain': c1,
+              'lag_before': float(before)}
+    return ChainFit(friction, params, float(S), float(J), float(sse), len(idx),
+                    tuple(c for c in COMPONENTS if c in free and c != 'tau2'))
+
+
+def _refine_delay(at, best_key, tau, before, near=None):
+    """Try half and quarter samples around the best dead time at lag ``tau``."""
+    for step in (0.5, 0.25):
+        d = best_key(tau, before)[0]
+        for d2 in (d - step, d + step):
+            at(d2, tau, before, near)
+
+
+def standard_errors(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit,
+                    rho: float) -> dict:
+    """
+    Return the standard error of each free stage from the SSE's curvature.
+
+    Each stage is varied alone with the others held (a conditional error);
+    the noise variance is inflated by (1 + rho) / (1 - rho) for a residual of
+    lag-1 autocorrelation ``rho``, which a least-squares error ignores.
+    """
+    idx = indices(segments)
+    sigma2 = fit.mse * (1.0 + rho) / max(1.0 - rho, 0.05)
+    out = {}
+    for name in fit.free:
+        v = fit.params[name]
+        h = max(1e-3, 0.05 * abs(v)) if name in ('delay', 'tau', 'tau2') else (
+            0.01 if name == 'offset' else 1e-3)
+        sse = []
+        for x in (v - h, v, v + h):
+            trial = ChainFit(fit.friction, {**fit.params, name: max(x, 0.0)
+                                            if name in ('delay', 'tau', 'tau2') else x},
+                             fit.S, fit.J, 0.0, fit.n, fit.free)
+            r = chain_output(op, mv, segments, trial)[idx] - mv[idx]
+            sse.append(float(r @ r))
+        curv = (sse[0] - 2.0 * sse[1] + sse[2]) / (h * h)
+        out[name] = math.sqrt(2.0 * sigma2 / curv) if curv > 0 else math.inf
+    return out
+
+
+def quantum(mv: np.ndarray, idx: np.ndarray) -> float:
+    """
+    Return the reading's resolution when MV lies on a grid of one step, else 0.
+
+    A transmitter of coarse resolution gives few distinct values, all an
+    integer number of steps apart; a continuous reading gives as many values
+    as samples.
+    """
+    y = np.asarray(mv, dtype=np.float64)[idx]
+    y = y[np.isfinite(y)]
+    values = np.unique(np.round(y, 9))
+    if len(values) < 3 or len(values) > 0.2 * len(y):
+        return 0.0
+    steps = np.diff(values)
+    q = float(np.min(steps[steps > 1e-9]))
+    if q <= 0.0:
+        return 0.0
+    k = (values - values[0]) / q
+    return q if np.all(np.abs(k - np.round(k)) < 0.05) else 0.0

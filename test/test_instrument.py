@@ -1,0 +1,169 @@
+"""The valve through its instruments: chain stages, the frictionless fit and the friction claim."""
+
+import math
+
+import numpy as np
+import pytest
+
+from stiction_ros.analysis.mismatch import decide
+from stiction_ros.analysis.mismatch import instrument as ins
+from stiction_ros.analysis.mismatch import stats
+from stiction_ros.concealed_cases import concealed_case
+
+
+@pytest.fixture(scope='module')
+def loop():
+    """Return a closed loop with a sticky valve (3 001 samples at 1 s) and its truth."""
+    d, truth = concealed_case('none', 3, duration=3000.0)
+    return d, truth
+
+
+def _noise(n, std, seed=1):
+    return std * np.random.default_rng(seed).standard_normal(n)
+
+
+def test_shift_by_whole_samples_holds_the_first_value_and_halfway_interpolates():
+    x = np.arange(10.0) ** 2
+    y = ins.shift(x, 2.0, [(0, 10)])
+    assert np.array_equal(y[:2], [x[0], x[0]]) and np.array_equal(y[2:], x[:-2])
+    half = ins.shift(x, 0.5, [(0, 10)])
+    assert np.allclose(half[1:], 0.5 * (x[1:] + x[:-1]))
+    # Each segment is shifted on its own: nothing crosses a gap.
+    two = ins.shift(x, 1.0, [(0, 5), (5, 10)])
+    assert two[5] == x[5] and two[6] == x[5]
+
+
+def test_lag_step_response_is_the_exact_first_order_one():
+    x = np.r_[np.zeros(10), np.ones(200)]
+    tau = 4.0
+    y = ins.lag(x, tau, [(0, len(x))])
+    k = np.arange(len(x) - 10)
+    assert np.allclose(y[10:], 1.0 - np.exp(-(k + 1) / tau))
+    assert np.array_equal(ins.lag(x, 0.0, [(0, len(x))]), x)
+
+
+def test_frictionless_fit_recovers_dead_time_lag_and_calibration(loop):
+    d, _ = loop
+    op = d['op']
+    n = len(op)
+    whole = [(0, n)]
+    mv = 1.5 + 1.04 * ins.lag(ins.shift(op, 1.6, whole), 3.0, whole) + _noise(n, 0.1)
+    stages = ('delay', 'tau', 'offset', 'gain')
+    fit = ins.fit_frictionless(op, mv, [(0, 2000)], 1.0, free=stages)
+    p = fit.params
+    assert abs(p['delay'] - 1.6) < 0.2 and abs(p['tau'] - 3.0) < 0.3
+    assert abs(p['offset'] - 1.5) < 0.3 and abs(p['gain'] - 1.04) < 0.01
+    # The fitted chain explains the reading to its noise.
+    assert fit.mse < 1.1 * 0.1 ** 2
+
+
+def test_quantum_finds_a_transmitter_step_and_nothing_in_a_continuous_reading(loop):
+    d, _ = loop
+    n = len(d['op'])
+    continuous = d['op'] + _noise(n, 0.1)
+    idx = np.arange(n)
+    assert ins.quantum(continuous, idx) == 0.0
+    stepped = 0.5 * np.round(continuous / 0.5)
+    assert math.isclose(ins.quantum(stepped, idx), 0.5, rel_tol=1e-6)
+
+
+def test_heldout_test_sees_a_real_gain_and_none_between_equal_models():
+    rng = np.random.default_rng(0)
+    e = rng.standard_normal(2000)
+    same = stats.heldout_test(e, e.copy())
+    assert same['gain'] == 0.0 and same['p'] == 1.0
+    better = stats.heldout_test(e + 0.5 * rng.standard_normal(2000), e)
+    assert better['gain'] > 0.1 and better['p'] < 0.01
+
+
+def _explain(d, mv):
+    n = len(mv)
+    return decide.explain_record(d['t'], d['op'], mv, [(0, n)], 1.0, reps=1)[0]
+
+
+def _never_worse_than_frictionless(report):
+    assert report['mismatch']['mse_holdout'] <= report['frictionless']['mse_holdout'] * 1.0001
+
+
+def test_a_clean_frictionless_valve_gets_no_effect_and_no_friction(loop):
+    d, _ = loop
+    mv = d['op'] + _noise(len(d['op']), 0.1)
+    r = _explain(d, mv)
+    m = r['mismatch']
+    assert m['friction'] is False and m['effects'] == [] and m['effect'] == 'none'
+    _never_worse_than_frictionless(r)
+
+
+def test_a_frictionless_valve_late_and_off_is_timing_and_calibration_not_stiction(loop):
+    # The issue's boiler-feed valve: follows OP late, through a lag, reading high.
+    d, _ = loop
+    whole = [(0, len(d['op']))]
+    mv = 2.0 + ins.lag(ins.shift(d['op'], 1.0, whole), 2.0, whole) + _noise(len(d['op']), 0.1)
+    r = _explain(d, mv)
+    m = r['mismatch']
+    assert m['friction'] is False
+    assert {e['id'] for e in m['effects']} == {'dead_time', 'response_lag',
+                                               'positioner_calibration'}
+    size = {e['id']: e['size'] for e in m['effects']}
+    assert abs(size['positioner_calibration'] - 2.0) < 0.3
+    # Plain Kano with no timing does far worse on the held-out part.
+    assert m['mse_holdout'] < 0.1 * r['baseline']['mse_holdout']
+    _never_worse_than_frictionless(r)
+
+
+def test_a_sticky_valve_read_late_is_stiction_and_dead_time(loop):
+    d, truth = loop
+    whole = [(0, len(d['op']))]
+    mv = ins.shift(d['mv_true'], 2.0, whole) + _noise(len(d['op']), 0.1)
+    r = _explain(d, mv)
+    m = r['mismatch']
+    assert m['friction'] is True and m['friction_kind'] == 'stiction'
+    assert 'dead_time' in {e['id'] for e in m['effects']}
+    chain = r['chains']['stiction']
+    assert abs(chain['dead_time_s'] - 2.0) <= 0.5
+    assert abs(chain['S'] - truth['valve']['S']) < 0.3
+    _never_worse_than_frictionless(r)
+
+
+def test_play_without_stick_is_backlash_not_stiction(loop):
+    d, _ = loop
+    op = d['op']
+    whole = [(0, len(op))]
+    mv = ins.friction_output(op, whole, 3.0, 0.0, op) + _noise(len(op), 0.1)
+    r = _explain(d, mv)
+    m = r['mismatch']
+    assert m['friction'] is False and m['friction_kind'] == 'backlash'
+    assert [e['id'] for e in m['effects']] == ['backlash']
+    assert abs(m['effects'][0]['size'] - 3.0) < 0.3
+    _never_worse_than_frictionless(r)
+
+
+def test_shifting_op_by_one_sample_moves_the_dead_time_not_the_verdict(loop):
+    # The issue's real valve flipped from no stiction to stiction when OP moved a sample.
+    d, _ = loop
+    whole = [(0, len(d['op']))]
+    mv = 2.0 + ins.lag(ins.shift(d['op'], 1.5, whole), 2.0, whole) + _noise(len(d['op']), 0.1)
+    late = _explain(d, mv)
+    early = _explain({**d, 'op': ins.shift(d['op'], 1.0, whole)}, mv)
+    for r in (late, early):
+        assert r['mismatch']['friction'] is False
+    shift = late['frictionless']['dead_time_s'] - early['frictionless']['dead_time_s']
+    assert abs(shift - 1.0) < 0.2
+
+
+def test_a_reading_in_steps_is_quantisation_not_friction(loop):
+    d, _ = loop
+    mv = 0.5 * np.round((d['op'] + _noise(len(d['op']), 0.05)) / 0.5)
+    r = _explain(d, mv)
+    m = r['mismatch']
+    assert m['friction'] is False and m['friction_kind'] == 'none'
+    assert [e['id'] for e in m['effects']] == ['quantisation']
+    assert math.isclose(m['effects'][0]['size'], 0.5, rel_tol=1e-6)
+
+
+def test_without_a_held_out_part_friction_rests_on_the_fitted_part(loop):
+    d, _ = loop
+    mv = d['mv_true'] + _noise(len(d['op']), 0.1)
+    r = decide.explain_record(d['t'], d['op'], mv, [(0, len(mv))], 1.0, holdout=0.0, reps=1)[0]
+    assert r['mismatch']['friction'] is True
+    assert 'heldout_p' not in r['friction_tests']['stiction_vs_frictionless']
