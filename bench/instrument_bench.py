@@ -2,9 +2,9 @@
 ``--explain`` run blind on closed loops hiding instrument and timing effects.
 
 Each case is a closed loop of ``stiction_ros.instrument_cases`` (dead time,
-response lag, positioner calibration, backlash, transmitter quantisation,
-stiction, alone or in pairs, or nothing), written to a CSV holding only what a
-plant historian gives (t, sp, pv, op, mv) and analysed by
+response lag, positioner calibration, rate limit, travel stop, backlash,
+transmitter quantisation, stiction, alone or in pairs, or nothing), written to
+a CSV holding only what a plant historian gives (t, sp, pv, op, mv) and analysed by
 ``stiction-analyze --explain`` in a worker process that never sees the truth.
 A case is right when the analyzer claims friction exactly when stiction is
 hidden and names exactly the hidden instrument effects.
@@ -157,7 +157,9 @@ def section(rows: list[dict], elapsed: float, jobs: int, per_case: int,
         '0.5, 1, 2 or 5 s (the loop scaled to look alike in samples). The instrument effects '
         'are drawn in seconds or % (dead time 0.5-3 s, at least 0.5 sample; lag 1-5 s, at '
         'least 0.7 sample; offset 0.5-3 %, gain error 2-6 %; backlash 1-4 %; resolution '
-        '0.25-1 %); stiction is Kano S 2-5 %, J 0.2-0.6 S. Right: friction claimed exactly '
+        '0.25-1 %; rate limit 0.15-0.4 of the largest OP change in a sample; travel stop at '
+        'the 95-99 % quantile of the position, high or low); stiction is Kano S 2-5 %, J '
+        '0.2-0.6 S. Right: friction claimed exactly '
         'when hidden and exactly the hidden effects named.', '',
         '### What was found (rows: hidden; counts over the runs; bold: hidden there)', '',
         '| case | hidden | runs | friction | ' + ' | '.join(f'`{i}`' for i in ids)

@@ -4,8 +4,9 @@ Closed-loop recordings with hidden instrument and timing effects, for proving ``
 Real valve recordings differ from a simulation first through instruments and
 timing, before any friction law: the measured valve position MV reads the
 controller output OP late (dead time), through a frictionless lag, through a
-positioner with an offset and a gain, through play without slip (backlash), or
-through a position transmitter of coarse resolution (quantisation).  Each case
+positioner with an offset and a gain, at a limited rate, against a travel stop,
+through play without slip (backlash), or through a position transmitter of
+coarse resolution (quantisation).  Each case
 is a loop like ``stiction_ros.concealed_cases`` (random FOPDT or integrating
 plant, SIMC PI, set-point and load steps, noise on PV and MV) drawn *in
 samples*: every loop time (plant, controller, steps) is drawn as for 1 s
@@ -64,9 +65,12 @@ _CASES = {
     'sticky_calibration': (True, 'kano', ('positioner_calibration',)),
     'lag_calibration': (False, 'linear', ('positioner_calibration', 'response_lag')),
     'dead_time_lag': (False, 'linear', ('dead_time', 'response_lag')),
+    'rate_limit': (False, 'linear', ('rate_limit',)),
+    'travel_limits': (False, 'linear', ('travel_limits',)),
 }
 CASES = tuple(_CASES)
-EFFECTS = ('dead_time', 'response_lag', 'positioner_calibration', 'backlash', 'quantisation')
+EFFECTS = ('dead_time', 'response_lag', 'positioner_calibration', 'backlash', 'quantisation',
+           'rate_limit', 'travel_limits')
 # Size ranges: seconds for times, % of span for offset, backlash and resolution.
 DEAD_TIME = (0.5, 3.0)
 LAG = (1.0, 5.0)
@@ -74,6 +78,10 @@ OFFSET = (0.5, 3.0)
 GAIN_ERROR = (0.02, 0.06)
 BACKLASH = (1.0, 4.0)
 STEP = (0.25, 1.0)
+# Rate limit: a share of the largest OP change in a sample (so that steps become ramps at
+# any sample time); travel stop: the quantile of the position where the stop sits.
+RATE_SHARE = (0.15, 0.4)
+STOP_QUANTILE = (0.95, 0.99)
 STICTION = (2.0, 5.0)
 JUMP = (0.2, 0.6)
 # Below these (in samples) the effect would hide inside one sample and no analysis could see it.
@@ -148,7 +156,32 @@ def _sizes(effects, seed, ts):
         sizes['quantisation'] = float(rngs['quantisation'].uniform(*STEP))
     if 'backlash' in effects:
         sizes['backlash'] = float(rngs['backlash'].uniform(*BACKLASH))
+    if 'rate_limit' in effects:
+        sizes['rate_limit'] = {'share': float(rngs['rate_limit'].uniform(*RATE_SHARE))}
+    if 'travel_limits' in effects:
+        rng = rngs['travel_limits']
+        sizes['travel_limits'] = {'quantile': float(rng.uniform(*STOP_QUANTILE)),
+                                  'side': 'high' if rng.random() < 0.5 else 'low'}
     return sizes
+
+
+def _actuator(x: np.ndarray, sizes: dict, ts: float) -> np.ndarray:
+    # The rate limit and the travel stop, sized on the position they act on.
+    if 'rate_limit' in sizes:
+        rl = sizes['rate_limit']
+        rl.setdefault('rate', rl['share'] * float(np.max(np.abs(np.diff(x)))))
+        y, out = x[0], np.empty_like(x)
+        for i, v in enumerate(x):
+            y += min(max(v - y, -rl['rate']), rl['rate'])
+            out[i] = y
+        rl['rate_pct_s'] = rl['rate'] / ts
+        x = out
+    if 'travel_limits' in sizes:
+        tl = sizes['travel_limits']
+        q = tl['quantile'] if tl['side'] == 'high' else 1.0 - tl['quantile']
+        tl.setdefault('stop', float(np.quantile(x, q)))
+        x = np.minimum(x, tl['stop']) if tl['side'] == 'high' else np.maximum(x, tl['stop'])
+    return x
 
 
 def measured(mv_true: np.ndarray, sizes: dict, ts: float, mv_std: float,
@@ -157,15 +190,16 @@ def measured(mv_true: np.ndarray, sizes: dict, ts: float, mv_std: float,
     Return the MV a positioner and transmitter with ``sizes`` report for position ``mv_true``.
 
     In order: dead time (linear interpolation between samples, the first
-    value held before the record), first-order lag (pole ``exp(-Ts/tau)`` on
-    the same sample's input, as the analyzer's own lags, starting at rest at
-    the first value), offset and gain, noise, then quantisation (a transmitter
-    rounds what it senses, noise included).
+    value held before the record), rate limit and travel stop, first-order
+    lag (pole ``exp(-Ts/tau)`` on the same sample's input, as the analyzer's
+    own lags, starting at rest at the first value), offset and gain, noise,
+    then quantisation (a transmitter rounds what it senses, noise included).
     """
     x = np.asarray(mv_true, dtype=float)
     if 'dead_time' in sizes:
         k = np.arange(len(x), dtype=float)
         x = np.interp(k - sizes['dead_time'] / ts, k, x)
+    x = _actuator(x, sizes, ts)
     if 'response_lag' in sizes:
         a = first_order_pole(sizes['response_lag'], ts)
         x, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])

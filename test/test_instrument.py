@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.mismatch import decide
+from stiction_ros.analysis.mismatch import frictionless
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import stats
 from stiction_ros.concealed_cases import concealed_case
@@ -49,7 +50,7 @@ def test_frictionless_fit_recovers_dead_time_lag_and_calibration(loop):
     whole = [(0, n)]
     mv = 1.5 + 1.04 * ins.lag(ins.shift(op, 1.6, whole), 3.0, whole) + _noise(n, 0.1)
     stages = ('delay', 'tau', 'offset', 'gain')
-    fit = ins.fit_frictionless(op, mv, [(0, 2000)], 1.0, free=stages)
+    fit = frictionless.fit_frictionless(op, mv, [(0, 2000)], 1.0, free=stages)
     p = fit.params
     assert abs(p['delay'] - 1.6) < 0.2 and abs(p['tau'] - 3.0) < 0.3
     assert abs(p['offset'] - 1.5) < 0.3 and abs(p['gain'] - 1.04) < 0.01
@@ -167,3 +168,22 @@ def test_without_a_held_out_part_friction_rests_on_the_fitted_part(loop):
     r = decide.explain_record(d['t'], d['op'], mv, [(0, len(mv))], 1.0, holdout=0.0, reps=1)[0]
     assert r['mismatch']['friction'] is True
     assert 'heldout_p' not in r['friction_tests']['stiction_vs_frictionless']
+
+
+def test_a_rate_limited_actuator_is_a_rate_limit_not_friction(loop):
+    from stiction_ros.analysis.mismatch.chain_kernel import limited
+    d, _ = loop
+    rate = 0.3 * float(np.max(np.abs(np.diff(d['op']))))
+    mv = limited(d['op'], [(0, len(d['op']))], rate) + _noise(len(d['op']), 0.1)
+    m = _explain(d, mv)['mismatch']
+    assert m['friction'] is False and [e['id'] for e in m['effects']] == ['rate_limit']
+    assert abs(m['effects'][0]['size'] - rate) < 0.1 * rate
+
+
+def test_a_valve_on_its_travel_stop_is_a_travel_limit(loop):
+    d, _ = loop
+    stop = float(np.quantile(d['op'], 0.97))
+    mv = np.minimum(d['op'], stop) + _noise(len(d['op']), 0.1)
+    m = _explain(d, mv)['mismatch']
+    assert m['friction'] is False and [e['id'] for e in m['effects']] == ['travel_limits']
+    assert abs(m['effects'][0]['size'] - stop) < 0.1

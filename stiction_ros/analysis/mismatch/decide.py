@@ -4,8 +4,9 @@
 The order of questions an engineer would ask of a valve that misbehaves:
 
 1. Does a valve with *no friction at all* explain the reading, once dead
-   time, lags, offset and gain are allowed (:func:`instrument.fit_frictionless`,
-   stages kept by backward elimination, :func:`select_stages`)?
+   time, lags, offset and gain, a rate limit and travel stops are allowed
+   (:func:`frictionless.fit_frictionless`, stages kept by backward
+   elimination, :func:`select_stages`)?
 2. Does a friction chain (backlash: play without stick; or stiction) beat
    it, on the fitted part by a likelihood ratio on the residual's effective
    sample size *and* on the held-out part by a paired block bootstrap
@@ -28,6 +29,7 @@ import numpy as np
 from stiction_ros.analysis.mismatch import explain as friction_explain
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import sentences
+from stiction_ros.analysis.mismatch.frictionless import fit_frictionless, stage_ok
 from stiction_ros.analysis.mismatch.frictionless_report import without_friction
 from stiction_ros.analysis.mismatch.stats import acf1, chi2_999, earns, heldout_test, \
     lr_eff, P_HELDOUT
@@ -98,19 +100,22 @@ def select_stages(rec: Rec, full):
     """
     Return the frictionless chain with only the stages that earn their place.
 
-    Backward elimination: the stage whose removal costs least is dropped
-    while it does not :func:`stats.earns` its place or is smaller than
-    :data:`PLAUSIBLE`.
+    Stages too small to name (:func:`frictionless.stage_ok`) go first, in one
+    refit; then backward elimination: the stage whose removal costs least is
+    dropped while it does not :func:`stats.earns` its place or is too small.
     """
     current = full
+    named = tuple(c for c in full.free if stage_ok(full, c, rec.op, rec.segments))
+    if named != full.free:
+        current = fit_frictionless(rec.op, rec.mv, rec.fit_segs, rec.sample_time, named)
     while current.free:
         trials = []
         for name in current.free:
             free = tuple(c for c in current.free if c != name and not
                          (name == 'tau' and c == 'tau2'))
-            reduced = ins.fit_frictionless(rec.op, rec.mv, rec.fit_segs, rec.sample_time, free)
+            reduced = fit_frictionless(rec.op, rec.mv, rec.fit_segs, rec.sample_time, free)
             c = compare(rec, reduced, current)
-            ok = earns(c) and abs(current.params[name] - ins.NULL[name]) >= PLAUSIBLE[name]
+            ok = earns(c) and stage_ok(current, name, rec.op, rec.segments)
             trials.append((ok, c['lr'], reduced))
         weakest = min(trials, key=lambda tr: (tr[0], tr[1]))
         if weakest[0]:
@@ -194,8 +199,9 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
     rec.quantum = ins.quantum(mv, rec.fit_idx)
     if rec.quantum > 0.0:
         rec.origin = float(np.median(np.mod(mv[rec.fit_idx], rec.quantum)))
-    say('fitting the best valve without friction (dead time, lags, offset, gain)')
-    full = ins.fit_frictionless(op, mv, fit_segs, sample_time)
+    say('fitting the best valve without friction (dead time, lags, offset, gain, rate '
+        'limit, travel stops)')
+    full = fit_frictionless(op, mv, fit_segs, sample_time)
     frictionless = select_stages(rec, full)
     say('fitting backlash and stiction with dead time, lag and calibration')
     backlash = ins.fit_friction(op, mv, fit_segs, sample_time, 'backlash', hint=full)
@@ -260,7 +266,8 @@ def _chain_answer(t, rec, winner, n_fit, holdout):
     rho = acf1(rec.errors(winner)[rec.fit_idx])
     se = ins.standard_errors(rec.op, rec.mv, rec.fit_segs, winner, rho)
     effects = sentences.chain_effects(winner, se, rec.sample_time, rec.quantum)
-    mv_chain = ins.chain_output(rec.op, rec.mv, rec.segments, winner)
+    # The prediction is what the transmitter would read, steps included.
+    mv_chain = rec.read(ins.chain_output(rec.op, rec.mv, rec.segments, winner))
     report, arrays = without_friction(t, rec.op, rec.mv, rec.segments, rec.sample_time, winner,
                                       mv_chain, n_fit, holdout, effects)
     return report, arrays

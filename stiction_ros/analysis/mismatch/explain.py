@@ -26,7 +26,8 @@ from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
-from stiction_ros.analysis.mismatch.fit import fit_effect, Problem, RESOLUTION, start_positions
+from stiction_ros.analysis.mismatch.fit import effect_errors, fit_effect, Problem, RESOLUTION, \
+    start_positions
 
 HOLDOUT = 0.3
 BOOTSTRAP = 3
@@ -205,11 +206,19 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
             'score': round(stats[f.effect] / thresholds[f.effect], 4),
             'lr': round(stats[f.effect], 3), 'threshold': round(thresholds[f.effect], 3)})
     passing = [c for c in candidates if c['score'] > 1.0]
+
+    def residual_of(f):
+        return (outputs[f.effect] - mv)[fit_mask]
     residual = mv - mv_base
     acf = _acf1(residual[fit_mask])
     if passing:
         chosen = max(passing, key=lambda c: c['score'])
         effect = chosen['effect']
+        fit = next(f for f in fits if f.effect == effect)
+        chosen['standard_errors'] = {
+            k: round(v, 6) for k, v in effect_errors(problem, BY_ID[effect], ctx, fit,
+                                                     _acf1(residual_of(fit)))
+            .items()}
         explanation = BY_ID[effect].sentence(chosen['params'], chosen['S'], chosen['J'])
         confidence = 1.0 - 1.0 / chosen['score']
         mv_explained = outputs[effect]

@@ -181,6 +181,28 @@ def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
                         problem.evaluations)
 
 
+def effect_errors(problem, effect, ctx, fit, rho=0.0) -> dict:
+    """
+    Return the standard error of each fitted effect parameter from the SSE's curvature.
+
+    S and J are held (a conditional error); the noise variance is inflated
+    by (1 + rho) / (1 - rho) for a residual of lag-1 autocorrelation ``rho``.
+    """
+    sigma2 = fit.sse / fit.n * (1.0 + rho) / max(1.0 - rho, 0.05)
+    theta = [fit.params[k] for k in effect.names]
+    out = {}
+    for i, name in enumerate(effect.names):
+        h = max(1e-3, 0.05 * abs(theta[i]))
+        sse = []
+        for x in (theta[i] - h, theta[i], theta[i] + h):
+            trial = list(theta)
+            trial[i] = x
+            sse.append(problem.sse(fit.S, fit.J, effect.vector(tuple(trial), ctx)))
+        curv = (sse[0] - 2.0 * sse[1] + sse[2]) / (h * h)
+        out[name] = math.sqrt(2.0 * sigma2 / curv) if curv > 0 else math.inf
+    return out
+
+
 def _bisect(problem, effect, ctx, best, dim, axis, rounds=3):
     # Halve the distance to the better grid neighbour of parameter ``dim`` a few times.
     sse, S, J, theta = best

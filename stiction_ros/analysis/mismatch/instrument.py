@@ -21,22 +21,31 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from stiction_ros.analysis.identify import identify, plausible_box
 from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.analysis.mismatch.chain_kernel import limited
 from stiction_ros.analysis.mismatch.fit import local_sj, Problem, RESOLUTION, start_positions
 
-COMPONENTS = ('delay', 'tau', 'tau2', 'offset', 'gain')
-NULL = {'delay': 0.0, 'tau': 0.0, 'tau2': 0.0, 'offset': 0.0, 'gain': 1.0}
+COMPONENTS = ('delay', 'tau', 'tau2', 'offset', 'gain', 'rate', 'travel')
+# 'rate': the largest change per sample (0: none); 'travel': 1 when the reading is held
+# within [travel_lo, travel_hi] (the stops), else 0.
+NULL = {'delay': 0.0, 'tau': 0.0, 'tau2': 0.0, 'offset': 0.0, 'gain': 1.0, 'rate': 0.0,
+        'travel': 0.0, 'travel_lo': -math.inf, 'travel_hi': math.inf}
 FRICTION_PARAMS = {'none': 0, 'backlash': 1, 'stiction': 2}
+# The stages a friction chain fits (its kernel holds the valve within 0-100 % already).
+FRICTION_STAGES = ('delay', 'tau', 'offset', 'gain')
 # Smallest sizes worth a sentence: below them a stage is noise-fitting, however
 # significant (a 0.05-sample dead time is a clock detail, not an actuator).
 PLAUSIBLE = {'delay': 0.1, 'tau': 0.2, 'tau2': 0.2, 'offset': 0.1, 'gain': 0.005}
+# A rate limit or a travel stop must act on this many samples to be named (a few OP
+# steps turned into ramps; a limiter no step reaches is no stage).
+ACTIVE_SAMPLES = 8
 # Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
 # an actuator a minute late is a broken loop, not a calibration question.
-MAX_DELAY = (20.0, 30.0)
+MAX_DELAY = (60.0, 30.0)
 MAX_LAG = (60.0, 120.0)
 SEARCH_RESOLUTION = 0.01
 LAG_TRIES = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0)
@@ -160,58 +169,15 @@ def chain_output(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit) -> np.
         u = shift(u, frac, segments)
     else:
         u = shift(op, p['delay'], segments)
+        if p.get('rate', 0.0) > 0.0:
+            u = limited(u, segments, p['rate'])
     y = lag(lag(u, 0.0 if before else p['tau'], segments), p['tau2'], segments)
     out = np.full(len(op), np.nan)
     idx = indices(segments)
     out[idx] = p['offset'] + p['gain'] * y[idx]
+    if p.get('travel', 0.0) > 0.0:
+        out[idx] = np.clip(out[idx], p['travel_lo'], p['travel_hi'])
     return out
-
-
-def _frictionless_sse(op, mv, segments, idx, d, tau, tau2, free):
-    y = lag(lag(shift(op, d, segments), tau, segments), tau2, segments)
-    return affine(y, mv, idx, 'offset' in free, 'gain' in free)
-
-
-def fit_frictionless(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
-                     free=COMPONENTS) -> ChainFit:
-    """
-    Return the best frictionless chain with the stages in ``free`` (the others at null).
-
-    A grid over dead time (quarter samples) and lag, then a bounded Powell
-    search from the best grid point; offset and gain are solved in closed form.
-    """
-    op = np.asarray(op, dtype=np.float64)
-    mv = np.asarray(mv, dtype=np.float64)
-    idx = indices(segments)
-    d_max, tau_max = limits(sample_time)
-    d_axis = np.arange(0.0, d_max + 1e-9, 0.25) if 'delay' in free else np.zeros(1)
-    t_axis = [t for t in TAU_GRID if t <= tau_max] if 'tau' in free else [0.0]
-    best = (math.inf, 0.0, 0.0, 0.0)
-    for d in d_axis:
-        for tau in t_axis:
-            sse = _frictionless_sse(op, mv, segments, idx, d, tau, 0.0, free)[2]
-            if sse < best[0]:
-                best = (sse, float(d), float(tau), 0.0)
-    names = [c for c in ('delay', 'tau', 'tau2') if c in free]
-    if names:
-        bounds = {'delay': (0.0, d_max), 'tau': (0.0, tau_max), 'tau2': (0.0, tau_max)}
-        start = {'delay': best[1], 'tau': best[2], 'tau2': 0.3 * best[2]}
-
-        def cost(theta):
-            v = {**NULL, **dict(zip(names, theta))}
-            return _frictionless_sse(op, mv, segments, idx, v['delay'], v['tau'], v['tau2'],
-                                     free)[2]
-        res = minimize(cost, [start[c] for c in names], method='Powell',
-                       bounds=[bounds[c] for c in names],
-                       options={'xtol': 1e-3, 'ftol': 1e-9, 'maxfev': 400})
-        if res.fun < best[0]:
-            v = {**NULL, **dict(zip(names, res.x))}
-            best = (float(res.fun), v['delay'], v['tau'], v['tau2'])
-    _, d, tau, tau2 = best
-    c0, c1, sse = _frictionless_sse(op, mv, segments, idx, d, tau, tau2, free)
-    params = {'delay': d, 'tau': tau, 'tau2': tau2, 'offset': c0, 'gain': c1}
-    stages = tuple(c for c in COMPONENTS if c in free)
-    return ChainFit('none', params, 0.0, 0.0, sse, len(idx), stages)
 
 
 def _friction_at(op, mv, segments, idx, d, friction, free, box, start, tau=0.0, near=None,
@@ -290,8 +256,9 @@ def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
     """
     Return the best chain with ``friction`` ('stiction' or 'backlash') and stages ``free``.
 
-    Dead time: whole samples upwards from none until two in a row do worse,
-    then half and quarter samples around the best (``delay`` fixes it
+    Dead time: whole samples around the frictionless fit's (``hint``), then
+    onwards from the best until two in a row do worse, then half and quarter
+    samples and a bounded search around the best (``delay`` fixes it
     instead).  Lag: a few values before the friction (an actuator) and after
     it (a transmitter), with no dead time and with the best, then refined.
     ``hint``, the frictionless fit, gives a second start for offset and gain
@@ -328,11 +295,18 @@ def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
 
     timed = delay is None and 'delay' in free
     if timed:
-        worse = 0
-        for d in np.arange(1.0, d_max + 1e-9, 1.0):
-            worse = worse + 1 if at(d)[0] > tried[best_key()][0] else 0
-            if worse >= 2:
-                break
+        # Whole samples around the frictionless fit's dead time (and its dead time plus
+        # lag: a frictionless fit reads a sticking valve's late breakaways as lag), then
+        # onwards from the best while it improves.
+        hd = hint.params['delay'] if hint is not None else 0.0
+        ht = hd + (hint.params['tau'] + hint.params['tau2'] if hint is not None else 0.0)
+        for d in sorted({float(round(x)) for x in (hd - 1, hd, hd + 1, ht - 1, ht, ht + 1)}):
+            at(max(d, 0.0))
+        for direction in (1.0, -1.0):
+            d, worse = best_key()[0], 0
+            while worse < 2 and 0.0 <= d + direction <= d_max:
+                d += direction
+                worse = worse + 1 if at(d)[0] > tried[best_key()][0] else 0
         _refine_delay(at, best_key, 0.0, False)
     if 'tau' in free:
         # A lag hides the slip jump (a stiction valve read through 3 s of lag fits as
@@ -369,7 +343,7 @@ def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
     params = {**NULL, 'delay': d, 'tau': tau, 'offset': c0, 'gain': c1,
               'lag_before': float(before)}
     return ChainFit(friction, params, float(S), float(J), float(sse), len(idx),
-                    tuple(c for c in COMPONENTS if c in free and c != 'tau2'))
+                    tuple(c for c in COMPONENTS if c in free and c in FRICTION_STAGES))
 
 
 def _refine_delay(at, best_key, tau, before, near=None):
@@ -393,13 +367,16 @@ def standard_errors(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit,
     sigma2 = fit.mse * (1.0 + rho) / max(1.0 - rho, 0.05)
     out = {}
     for name in fit.free:
+        if name == 'travel':
+            continue
         v = fit.params[name]
-        h = max(1e-3, 0.05 * abs(v)) if name in ('delay', 'tau', 'tau2') else (
+        h = max(1e-3, 0.05 * abs(v)) if name in ('delay', 'tau', 'tau2', 'rate') else (
             0.01 if name == 'offset' else 1e-3)
         sse = []
         for x in (v - h, v, v + h):
             trial = ChainFit(fit.friction, {**fit.params, name: max(x, 0.0)
-                                            if name in ('delay', 'tau', 'tau2') else x},
+                                            if name in ('delay', 'tau', 'tau2', 'rate')
+                                            else x},
                              fit.S, fit.J, 0.0, fit.n, fit.free)
             r = chain_output(op, mv, segments, trial)[idx] - mv[idx]
             sse.append(float(r @ r))

@@ -3,8 +3,8 @@
 import math
 
 # The effects of the chain around the friction model, beside EFFECTS.md's friction ones.
-INSTRUMENT_IDS = ('dead_time', 'response_lag', 'positioner_calibration', 'backlash',
-                  'quantisation')
+INSTRUMENT_IDS = ('dead_time', 'response_lag', 'positioner_calibration', 'rate_limit',
+                  'travel_limits', 'backlash', 'quantisation')
 
 
 def _fmt(v: float) -> str:
@@ -60,6 +60,26 @@ def chain_effects(fit, se: dict, sample_time: float, quantum: float = 0.0) -> li
                          f'reads {off + 50.0 * gain:.1f} %; recalibrate the positioner or '
                          'the position transmitter.'),
             'params': {'offset': off, 'gain': gain}})
+    if 'rate' in fit.free and p.get('rate', 0.0) > 0.0:
+        rate, err = p['rate'] / ts, se.get('rate')
+        out.append({
+            'id': 'rate_limit', 'size': round(rate, 4), 'unit': '%/s',
+            'uncertainty': None if err is None else round(err / ts, 4),
+            'sentence': (f'The valve moves no faster than {_fmt(rate)}{_pm(err, 1.0 / ts)} %/s: '
+                         'OP steps become ramps (actuator air supply, booster or motor speed); '
+                         'no friction is needed for that.'),
+            'params': {'rate_pct_s': rate}})
+    if 'travel' in fit.free and p.get('travel', 0.0) > 0.0:
+        lo, hi = p['travel_lo'], p['travel_hi']
+        where = ' and '.join(f'{w} {v:.3g} %' for w, v in (('below', hi), ('above', lo))
+                             if math.isfinite(v))
+        out.append({
+            'id': 'travel_limits', 'size': round(hi if math.isfinite(hi) else lo, 4),
+            'unit': '%', 'uncertainty': None,
+            'sentence': (f'The reading stays {where} while OP goes on: '
+                         'the valve is on a travel stop (or the positioner range is set '
+                         'narrower than the OP range).'),
+            'params': {'travel_lo': lo, 'travel_hi': hi}})
     if fit.friction == 'backlash':
         out.append({
             'id': 'backlash', 'size': round(fit.S, 4), 'unit': '%', 'uncertainty': None,

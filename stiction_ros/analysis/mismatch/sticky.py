@@ -40,9 +40,13 @@ ANALOGUES = {'delay': ('actuator_lag', 'measurement_lag'),
 
 def chain_candidates(op, mv, fit_segs, sample_time, plain_sse, worst, hint) -> list:
     """Return the dead-time and calibration candidates, scored like the friction effects."""
-    out = []
+    out, delay = [], None
     for stages in STAGE_SETS:
-        c = ins.fit_friction(op, mv, fit_segs, sample_time, 'stiction', stages, hint=hint)
+        # The dead time is searched once; with calibration it is held at that value.
+        c = ins.fit_friction(op, mv, fit_segs, sample_time, 'stiction', stages, hint=hint,
+                             delay=delay if len(stages) == 3 else None)
+        if stages == ('delay',):
+            delay = c.params['delay']
         stat = fx.lr(c.n, plain_sse, c.sse)
         top = max((worst.get(e, 0.0) for s in stages for e in ANALOGUES[s]), default=0.0)
         thr = max(chi2_999(len(stages)), fx.MARGIN * top)
@@ -72,7 +76,7 @@ def explain_sticky(t, op, mv, segments, sample_time, holdout, reps, seed, say, j
     top_effect = max((c['lr'] - chi2_999(len(c['params'])) for c in effects), default=-1.0)
     report['chain_candidates'] = _summaries(cands, sample_time)
     if best is None or best['lr'] - chi2_999(best['k']) <= top_effect:
-        return report, arrays, _effect_list(m)
+        return report, arrays, _effect_list(report)
     chain = best['fit']
     say(f'kept {", ".join(chain.free)}; searching the friction effects once more')
     p = chain.params
@@ -95,7 +99,7 @@ def explain_sticky(t, op, mv, segments, sample_time, holdout, reps, seed, say, j
     rho = acf1((ins.chain_output(op, mv, fit_segs, chain) - mv)[idx])
     stages = sentences.chain_effects(chain, ins.standard_errors(op, mv, fit_segs, chain, rho),
                                      sample_time)
-    second = _effect_list(report['mismatch'])
+    second = _effect_list(report)
     lag = report['mismatch']['model']['params'].get('time_constant_s')
     if ('delay' in chain.free and report['mismatch']['effect'] in SUBSAMPLE_LAGS
             and lag is not None and lag <= sample_time):
@@ -113,11 +117,18 @@ def _summaries(cands, sample_time):
              'gain': round(c['fit'].params['gain'], 5)} for c in cands]
 
 
-def _effect_list(m):
+def _effect_list(report):
+    """Return the friction effect of a report as a named effect with size and error."""
+    m = report['mismatch']
     if m['effect'] in ('none', 'unexplained'):
         return []
-    return [{'id': m['effect'], 'size': None, 'unit': '', 'uncertainty': None,
-             'sentence': m['explanation'], 'params': m['model']['params']}]
+    cand = next((c for c in report['candidates'] if c['effect'] == m['effect']), {})
+    params, errors = cand.get('params', {}), cand.get('standard_errors', {})
+    first = next(iter(params), None)
+    return [{'id': m['effect'], 'size': None if first is None else params[first],
+             'unit': first or '', 'uncertainty': errors.get(first),
+             'sentence': m['explanation'], 'params': m['model']['params'],
+             'standard_errors': errors}]
 
 
 def _back_to_reading(report, arrays, op, mv, p, plain, plain_arrays):
