@@ -82,6 +82,12 @@ def _explain(d, mv):
     return decide.explain_record(d['t'], d['op'], mv, [(0, n)], 1.0, reps=1)[0]
 
 
+def _late_and_high(op, delay):
+    """Return the reading of a frictionless valve ``delay`` samples late, lagged, 2 % high."""
+    whole = [(0, len(op))]
+    return 2.0 + ins.lag(ins.shift(op, delay, whole), 2.0, whole) + _noise(len(op), 0.1)
+
+
 def _never_worse_than_frictionless(report):
     assert report['mismatch']['mse_holdout'] <= report['frictionless']['mse_holdout'] * 1.0001
 
@@ -98,9 +104,7 @@ def test_a_clean_frictionless_valve_gets_no_effect_and_no_friction(loop):
 def test_a_frictionless_valve_late_and_off_is_timing_and_calibration_not_stiction(loop):
     # The issue's boiler-feed valve: follows OP late, through a lag, reading high.
     d, _ = loop
-    whole = [(0, len(d['op']))]
-    mv = 2.0 + ins.lag(ins.shift(d['op'], 1.0, whole), 2.0, whole) + _noise(len(d['op']), 0.1)
-    r = _explain(d, mv)
+    r = _explain(d, _late_and_high(d['op'], 1.0))
     m = r['mismatch']
     assert m['friction'] is False
     assert {e['id'] for e in m['effects']} == {'dead_time', 'response_lag',
@@ -142,10 +146,9 @@ def test_play_without_stick_is_backlash_not_stiction(loop):
 def test_shifting_op_by_one_sample_moves_the_dead_time_not_the_verdict(loop):
     # The issue's real valve flipped from no stiction to stiction when OP moved a sample.
     d, _ = loop
-    whole = [(0, len(d['op']))]
-    mv = 2.0 + ins.lag(ins.shift(d['op'], 1.5, whole), 2.0, whole) + _noise(len(d['op']), 0.1)
+    mv = _late_and_high(d['op'], 1.5)
     late = _explain(d, mv)
-    early = _explain({**d, 'op': ins.shift(d['op'], 1.0, whole)}, mv)
+    early = _explain({**d, 'op': ins.shift(d['op'], 1.0, [(0, len(mv))])}, mv)
     for r in (late, early):
         assert r['mismatch']['friction'] is False
     shift = late['frictionless']['dead_time_s'] - early['frictionless']['dead_time_s']
