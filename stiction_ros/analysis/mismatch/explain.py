@@ -141,7 +141,8 @@ def calibrate(op, fit_segments, replicate_fits):
     return worst, acfs
 
 
-def _mse(a, b, mask):
+def masked_mse(a, b, mask):
+    """Return the MSE of ``a`` against ``b`` where ``mask`` and both are finite."""
     m = mask & np.isfinite(a) & np.isfinite(b)
     return float(np.mean((a[m] - b[m]) ** 2)) if np.any(m) else float('nan')
 
@@ -201,8 +202,8 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         outputs[f.effect] = out
         candidates.append({
             'effect': f.effect, 'params': {k: round(v, 6) for k, v in f.params.items()},
-            'S': f.S, 'J': f.J, 'mse_fit': _mse(out, mv, fit_mask),
-            'mse_holdout': _mse(out, mv, hold_mask),
+            'S': f.S, 'J': f.J, 'mse_fit': masked_mse(out, mv, fit_mask),
+            'mse_holdout': masked_mse(out, mv, hold_mask),
             'score': round(stats[f.effect] / thresholds[f.effect], 4),
             'lr': round(stats[f.effect], 3), 'threshold': round(thresholds[f.effect], 3)})
     passing = [c for c in candidates if c['score'] > 1.0]
@@ -241,16 +242,16 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
     labels.update(locate.time_thirds(n, fit_mask))
     report = {
         'baseline': {'model': 'kano', 'S': base.S, 'J': base.J,
-                     'mse_fit': _mse(mv_base, mv, fit_mask),
-                     'mse_holdout': _mse(mv_base, mv, hold_mask)},
+                     'mse_fit': masked_mse(mv_base, mv, fit_mask),
+                     'mse_holdout': masked_mse(mv_base, mv, hold_mask)},
         'mismatch': {
             'effect': effect, 'confidence': round(float(confidence), 4),
             'explanation': explanation,
             'regions': locate.regions(t, residual, labels, fit_mask),
             'regimes': locate.regime_shares(residual, labels, fit_mask),
             'model': model,
-            'mse_fit': _mse(mv_explained, mv, fit_mask),
-            'mse_holdout': _mse(mv_explained, mv, hold_mask),
+            'mse_fit': masked_mse(mv_explained, mv, fit_mask),
+            'mse_holdout': masked_mse(mv_explained, mv, hold_mask),
             'residual_acf1': round(acf, 4),
             'bootstrap': {'replicates': reps, 'largest_lr': {k: round(v, 3)
                                                              for k, v in worst.items()},

@@ -5,14 +5,9 @@ import numpy as np
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import explain as friction_explain
 from stiction_ros.analysis.mismatch import locate
+from stiction_ros.analysis.mismatch.explain import masked_mse
 from stiction_ros.analysis.mismatch.fit import RESOLUTION
 from stiction_ros.analysis.mismatch.stats import acf1
-
-
-def masked_mse(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
-    """Return the MSE of ``a`` against ``b`` where ``mask`` and both are finite."""
-    m = mask & np.isfinite(a) & np.isfinite(b)
-    return float(np.mean((a[m] - b[m]) ** 2)) if np.any(m) else float('nan')
 
 
 def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, holdout,

@@ -14,7 +14,6 @@ in part; whichever fits better wins, as a greedy forward selection would.
 from stiction_ros.analysis.mismatch import explain as fx
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import sentences
-from stiction_ros.analysis.mismatch.frictionless_report import masked_mse
 from stiction_ros.analysis.mismatch.stats import acf1, chi2_999
 
 STAGE_NAMES = {'delay': 'dead_time', 'offset': 'positioner_calibration'}
@@ -141,8 +140,8 @@ def _back_to_reading(report, arrays, op, mv, p, plain, plain_arrays):
         arrays[key] = plain_arrays[key]
     report['baseline'] = plain
     m = report['mismatch']
-    m['mse_fit'] = masked_mse(arrays['mv_explained'], mv, fit_mask)
-    m['mse_holdout'] = masked_mse(arrays['mv_explained'], mv, hold_mask)
+    m['mse_fit'] = fx.masked_mse(arrays['mv_explained'], mv, fit_mask)
+    m['mse_holdout'] = fx.masked_mse(arrays['mv_explained'], mv, hold_mask)
     s = report['series']
     s['op'], s['mv'] = fx._json(op), fx._json(mv)
     s['mv_baseline'] = fx._json(arrays['mv_baseline'])
