@@ -9,7 +9,7 @@ from stiction_ros.cli.analyze import main as analyze
 
 def bench_batch(folder, jobs=(1, 2)):
     """Return [(jobs, recordings, seconds)] for ``stiction-analyze FOLDER --jobs N``."""
-    from stiction_ros.cli.batch import expand
+    from stiction_ros.app.batch import expand
     n = len(expand(str(folder)))
     rows = []
     for j in jobs:

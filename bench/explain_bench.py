@@ -2,7 +2,7 @@
 ``--explain`` run blind on concealed closed-loop cases (``make bench-explain``).
 
 Each case is a closed loop simulated by the project's own simulator (see
-``stiction_ros.concealed_cases``) with exactly one hidden effect of docs
+``stiction_ros.sim.concealed_cases``) with exactly one hidden effect of docs
 EFFECTS.md, or none.  The case is written to a CSV holding only what a plant
 historian would give (t, sp, pv, op, mv) and analysed by the
 ``stiction-analyze --explain`` command line in a worker process that never sees
@@ -31,7 +31,7 @@ import numpy as np
 from stiction_ros.analysis.mismatch.effects import IDS
 from stiction_ros.analysis.mismatch.sentences import INSTRUMENT_IDS
 from stiction_ros.cli.study import machine_description
-from stiction_ros.concealed_cases import concealed_case, FAMILIES, SIZES
+from stiction_ros.sim.concealed_cases import concealed_case, FAMILIES, SIZES
 
 ROOT = Path(__file__).resolve().parents[1]
 NOISES = (0.5, 1.0, 2.0)
@@ -61,7 +61,7 @@ def case_list(per_effect, physical_per_effect, seed_offset=0):
 def run_case(case, holdout=0.3, bootstrap=3):
     """Simulate one case, analyse its CSV blind, return the row of the table."""
     from stiction_ros.cli.analyze import main as analyze
-    from stiction_ros.closed_loop import write_csv
+    from stiction_ros.sim.closed_loop import write_csv
     record, truth = concealed_case(case['effect'], case['seed'], noise=case['noise'],
                                    family=case['family'])
     with tempfile.TemporaryDirectory() as tmp:
@@ -117,7 +117,7 @@ def markdown(rows, elapsed, jobs, bootstrap, seed_offset=0):
             else '(scoring seeds: never used to set anything).'),
         '',
         'Every case is an 8 641-sample closed loop (1 s sampling) from '
-        '`stiction_ros/concealed_cases.py`: a random self-regulating (FOPDT) or integrating '
+        '`stiction_ros/sim/concealed_cases.py`: a random self-regulating (FOPDT) or integrating '
         'plant under SIMC-tuned PI control, set-point and load steps, noise on PV and MV at '
         'three levels (0.5, 1 and 2 times: MV noise 0.05, 0.1, 0.2 % standard deviation), and '
         'exactly one hidden effect at a size drawn at random from a range chosen to stay '

@@ -13,8 +13,8 @@ import json
 import time
 
 from stiction_ros.analysis.mismatch.decide import explain_record
-from stiction_ros.cli.batch import default_jobs
-from stiction_ros.concealed_cases import concealed_case
+from stiction_ros.app.analyze import default_jobs
+from stiction_ros.sim.concealed_cases import concealed_case
 
 CASES = (('measurement_lag', 401), ('actuator_lag', 301))
 

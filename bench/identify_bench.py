@@ -13,10 +13,10 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.identify import _axis, identify, plausible_box, Problem
-from stiction_ros.closed_loop import simulate_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+from stiction_ros.analysis.identify import _axis, identify, plausible_box, ValveProblem
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop
+from stiction_ros.sim.loop_config import load_loop
 
 TRUE_S, TRUE_J = 3.47, 1.23
 # Grid points timed on long records, where the whole plain grid is too slow to run.
@@ -40,7 +40,7 @@ def bench_identify(best_time, model, n=8641):
     t_search = best_time(lambda: identify(op, mv, model, interval=False), repeats)
     fit = identify(op, mv, model)
     t_fast = fit.seconds
-    problem = Problem(model, op, mv)
+    problem = ValveProblem(model, op, mv)
     s_max, j_max = plausible_box(op, mv)
     s_ax = _axis(0.0, s_max, 0.01, 0.01)
     j_ax = _axis(0.0, j_max, 0.01, 0.01)

@@ -1,7 +1,7 @@
 """
 ``--explain`` run blind on closed loops hiding instrument and timing effects.
 
-Each case is a closed loop of ``stiction_ros.instrument_cases`` (dead time,
+Each case is a closed loop of ``stiction_ros.sim.instrument_cases`` (dead time,
 response lag, positioner calibration, rate limit, travel stop, backlash,
 transmitter quantisation, stiction, alone or in pairs, or nothing), written to
 a CSV holding only what a plant historian gives (t, sp, pv, op, mv) and analysed by
@@ -36,7 +36,7 @@ from bench import load_bench
 import numpy as np
 
 from stiction_ros.cli.study import machine_description
-from stiction_ros.instrument_cases import CASES, EFFECTS, instrument_case
+from stiction_ros.sim.instrument_cases import CASES, EFFECTS, instrument_case
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_TIMES = (0.1, 0.5, 1.0, 2.0, 5.0)
@@ -96,7 +96,7 @@ def score(run: dict, truth: dict, report: dict) -> dict:
 def run_case(run: dict) -> dict:
     """Simulate one run, analyse its CSV blind, return the scored row."""
     from stiction_ros.cli.analyze import main as analyze
-    from stiction_ros.closed_loop import write_csv
+    from stiction_ros.sim.closed_loop import write_csv
     t0 = time.perf_counter()
     record, truth = instrument_case(run['case'], run['seed'], sample_time=run['sample_time'],
                                     noise=run['noise'])
@@ -151,7 +151,7 @@ def section(rows: list[dict], elapsed: float, jobs: int, per_case: int,
         f'{seeds_from} --jobs {jobs}` ({len(rows)} runs, {elapsed / 60:.1f} min in all).',
         f'Seeds {seeds_from} to {seeds_from + per_case - 1} for every case (scoring seeds '
         'from 700000 are never tuned on; 600000 and up are the development seeds).', '',
-        'Each run is an 8 641-sample closed loop from `stiction_ros/instrument_cases.py`: a '
+        'Each run is an 8 641-sample closed loop from `stiction_ros/sim/instrument_cases.py`: a '
         'random FOPDT or integrating plant under SIMC PI, set-point and load steps, noise on '
         'PV and MV (0.5, 1 or 2 times: MV noise 0.05, 0.1, 0.2 %), at a sample time of 0.1, '
         '0.5, 1, 2 or 5 s (the loop scaled to look alike in samples). The instrument effects '

@@ -35,8 +35,8 @@ from std_msgs.msg import Float64, String
 
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import node_command, run_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.loop_config import load_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 PHASES = {'pv': 0.25, 'op': 0.5, 'mv': 0.75}

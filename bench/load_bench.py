@@ -37,10 +37,10 @@ import numpy as np
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import node_command, Processes
 from stiction_ros.cli.study import machine_description
-from stiction_ros.loop_config import load_loop
 from stiction_ros.nodes import state_file
-from stiction_ros.paths import config_file
-from stiction_ros.ros_params import LOOP_NODES, params_file, PHASES
+from stiction_ros.resources import config_file
+from stiction_ros.sim.loop_config import load_loop
+from stiction_ros.sim.ros_params import LOOP_NODES, params_file, PHASES
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,9 +9,9 @@ first 1e5 samples are checked equal bit for bit.
 
 import numpy as np
 
-from stiction_ros.closed_loop import simulate_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop
+from stiction_ros.sim.loop_config import load_loop
 
 
 def bench_loop(best_time, n=1_000_000, n_python=100_000):

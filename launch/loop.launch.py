@@ -2,7 +2,7 @@
 Bring up a loop from a loop description on a ROS 2 install: ``ros2 launch``.
 
 The same as the ``loop`` executable, with the same parameter mapping
-(:mod:`stiction_ros.ros_params`)::
+(:mod:`stiction_ros.sim.ros_params`)::
 
     ros2 launch stiction_ros loop.launch.py case:=undershoot
     ros2 launch stiction_ros loop.launch.py namespace:=loop2 rtf:=100.0 record:=/tmp/bag
@@ -22,9 +22,9 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
-from stiction_ros.ros_params import loop_extras, LOOP_NODES, node_parameters
+from stiction_ros.resources import config_file
+from stiction_ros.sim.loop_config import load_loop
+from stiction_ros.sim.ros_params import loop_extras, LOOP_NODES, node_parameters
 
 EXECUTABLES = {'plant': 'plant', 'controller': 'controller', 'valve': 'valve',
                'recorder': 'recorder', 'sim_clock': 'sim_clock'}

@@ -4,8 +4,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from stiction_ros.analysis.accuracy import balanced_accuracy, confusion, cross_validate
 from stiction_ros.analysis.signatures.result import Signature
+from stiction_ros.study.accuracy import balanced_accuracy, confusion, cross_validate
 
 
 def case(group, label, **votes):

@@ -18,9 +18,9 @@ from stiction_ros.analysis.record import InputError
 from stiction_ros.bag.metadata import qos_profile
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.bag.writer import BagWriter
-from stiction_ros.closed_loop import simulate_loop, write_csv
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
 
 PLANT = plant_loops_dir() or Path('/nonexistent')
 PLANT_FILES = sorted(PLANT.glob('*/*.txt'))

@@ -13,10 +13,10 @@ from data_paths import plant_loops_dir
 import numpy as np
 import pytest
 
-from stiction_ros.closed_loop import simulate_loop, write_csv
-from stiction_ros.loop_config import load_loop
 from stiction_ros.models import create
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
 from test_analysis_inputs import write_bag
 
 PLANT_LOOPS = plant_loops_dir()

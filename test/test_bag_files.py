@@ -14,9 +14,9 @@ from stiction_ros.bag.msg_definitions import schema_text, SEPARATOR
 from stiction_ros.bag.reader import BagReadError, read_bag
 from stiction_ros.bag.repair import repair_bag
 from stiction_ros.bag.writer import BagError, BagWriter
-from stiction_ros.loop_config import ConfigError, load_loop
-from stiction_ros.paths import config_file
-from stiction_ros.ros_params import node_parameters, params_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.loop_config import ConfigError, load_loop
+from stiction_ros.sim.ros_params import node_parameters, params_file
 import yaml
 
 
@@ -100,3 +100,20 @@ def test_loop_file_maps_to_node_parameters_and_the_shipped_params_file():
     noisy = load_loop(config_file('concentration_loop.yaml'), 'undershoot', {'noise.mv_std': 0.1})
     with pytest.raises(ConfigError, match='mv_std'):
         node_parameters(noisy)
+
+
+def test_a_topic_whose_schema_is_not_ros2msg_is_a_clear_error(tmp_path):
+    # An MCAP from another tool may carry JSON-schema or IDL types, which mcap_ros2
+    # cannot decode; asking for their values names the encoding, not a TypeError.
+    from mcap.writer import Writer
+    path = tmp_path / 'json.mcap'
+    with open(path, 'wb') as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema(name='Reading', encoding='jsonschema', data=b'{}')
+        cid = w.register_channel(topic='/reading', message_encoding='cdr', schema_id=sid)
+        w.add_message(channel_id=cid, log_time=1, publish_time=1, data=b'\x00\x01\x00\x00')
+        w.finish()
+    topic = read_bag(path).topic('/reading')
+    with pytest.raises(BagReadError, match="'jsonschema'.*only ros2msg"):
+        topic.values()

@@ -8,8 +8,8 @@ from data_paths import plant_loops_dir
 import pytest
 
 from stiction_ros.cli.analyze import EXIT_INPUT, main
-from stiction_ros.closed_loop import write_csv
-from stiction_ros.concealed_cases import concealed_case
+from stiction_ros.sim.closed_loop import write_csv
+from stiction_ros.sim.concealed_cases import concealed_case
 
 pytestmark = pytest.mark.slow
 

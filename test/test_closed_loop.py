@@ -5,12 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stiction_ros.analysis.measures.limit_cycle import measure_oscillation
 from stiction_ros.cli import sim
-from stiction_ros.closed_loop import build_valve, simulate_loop
-from stiction_ros.describing_function import predict_limit_cycle, valve_describing_function
-from stiction_ros.limit_cycle import measure_oscillation
-from stiction_ros.loop_config import ConfigError, load_loop
 from stiction_ros.models import Linear
+from stiction_ros.sim.closed_loop import build_valve, simulate_loop
+from stiction_ros.sim.loop_config import ConfigError, load_loop
+from stiction_ros.study.describing_function import predict_limit_cycle, valve_describing_function
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'concentration_loop.yaml'
 

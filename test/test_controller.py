@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stiction_ros.controller import PID
+from stiction_ros.sim.controller import PID
 
 
 def test_pi_response_to_constant_error_is_kc_e_one_plus_t_over_ti():

@@ -7,10 +7,10 @@ from stiction_ros.analysis.detection import detect, model_file
 from stiction_ros.analysis.detection.resolve import (
     cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
 from stiction_ros.analysis.detection.stuck import stuck_periods
-from stiction_ros.closed_loop import simulate_loop
-from stiction_ros.disturbed_loops import disturbed_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop
+from stiction_ros.sim.disturbed_loops import disturbed_loop
+from stiction_ros.sim.loop_config import load_loop
 
 
 def noisy(n, seed=0, scale=1.0):

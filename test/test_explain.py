@@ -8,12 +8,12 @@ import sys
 import numpy as np
 import pytest
 
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.analysis.mismatch.effects import Context, EFFECTS, IDS
 from stiction_ros.analysis.mismatch.explain import explain, fit_all
-from stiction_ros.closed_loop import write_csv
-from stiction_ros.concealed_cases import concealed_case, SIZES
+from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.models import create
+from stiction_ros.sim.closed_loop import write_csv
+from stiction_ros.sim.concealed_cases import concealed_case, SIZES
 
 
 def op_walk(n=6000, seed=0):

@@ -1,7 +1,7 @@
 """The --explain benchmark's table: confusion matrix, false alarms and MSE ratios from rows."""
 
 from bench.explain_bench import case_list, markdown
-from stiction_ros.concealed_cases import FAMILIES, SIZES
+from stiction_ros.sim.concealed_cases import FAMILIES, SIZES
 
 
 def row(family, effect, found, ratio, seed=0):

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.hammerstein import (
-    MAX_IMPROVEMENT_RATIO, Problem, quantify, segment_path)
-from stiction_ros.closed_loop import build_controller, build_plant, build_valve, simulate_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
+    HammersteinProblem, MAX_IMPROVEMENT_RATIO, quantify, segment_path)
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import build_controller, build_plant, build_valve, simulate_loop
+from stiction_ros.sim.loop_config import load_loop
 
 INTEGRATING = {'plant.num': [0.05], 'plant.den': [20.0, 1.0, 0.0], 'controller.Kc': 1.0,
                'controller.Ti': 100.0}
@@ -134,7 +134,7 @@ def test_gaps_split_the_fit_and_no_regressor_crosses_them():
     assert_close(r, 4.0, 1.0)
     assert r.reliable, r.reason
     assert len(r.details['valve_start']) == 3
-    p = Problem(op, pv, [(0, 700), (760, 900), (960, 2001)], False, (2, 2), 1, 30)
+    p = HammersteinProblem(op, pv, [(0, 700), (760, 900), (960, 2001)], False, (2, 2), 1, 30)
     for s, (a, b) in enumerate(p.segments):
         rows = p.rows[p.row_seg == s]
         # the oldest regressor of every row (PV or valve input) lies in its segment
@@ -144,7 +144,7 @@ def test_gaps_split_the_fit_and_no_regressor_crosses_them():
 def test_kernel_sse_equals_a_plain_least_squares_fit():
     op, pv = record(4.0, 1.0, duration=800)
     for integrating in (False, True):
-        p = Problem(op, pv, [(0, 400), (420, 801)], integrating, (2, 2), 1, 20)
+        p = HammersteinProblem(op, pv, [(0, 400), (420, 801)], integrating, (2, 2), 1, 20)
         starts = [p.at_rest(), ((1, 0.3), (-1, 1.0))]
         for (S, J, d), start in zip([(0.0, 0.0, 3), (3.0, 1.5, 11), (4.0, 1.0, 20)],
                                     starts * 2):

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.identify import (
-    _axis, given_fit, identify, IdentifyError, Problem, search)
-from stiction_ros.analysis.sse_kernels import kano_output
-from stiction_ros.closed_loop import simulate_loop
-from stiction_ros.loop_config import load_loop
+    _axis, given_fit, identify, IdentifyError, search, ValveProblem)
+from stiction_ros.kernels.sse import kano_output
 from stiction_ros.models import create
 from stiction_ros.models.lags import first_order_pole
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop
+from stiction_ros.sim.loop_config import load_loop
 
 N_INDUSTRIAL = 8641
 
@@ -40,14 +40,14 @@ def test_identification_recovers_S_and_J_within_a_tenth_of_a_percent(model, S, J
     # than the truth: the search found the global minimum, not a local one
     assert fit.S_interval[0] <= S <= fit.S_interval[1]
     assert fit.J_interval[0] <= J <= fit.J_interval[1]
-    assert fit.mse <= Problem(model, d['op'], d['mv']).mse(S, J) + 1e-12
+    assert fit.mse <= ValveProblem(model, d['op'], d['mv']).mse(S, J) + 1e-12
     # results lie on the 0.01 % grid
     assert round(fit.S * 100) == pytest.approx(fit.S * 100, abs=1e-6)
 
 
 def test_no_point_of_a_dense_grid_beats_the_search():
     d = noisy_loop('kano', 5.26, 2.71, seed=7, duration=3000)
-    problem = Problem('kano', d['op'], d['mv'])
+    problem = ValveProblem('kano', d['op'], d['mv'])
     sse, S, J = search(problem, float(np.ptp(d['op'])), float(np.ptp(d['mv'])))
     s_axis = _axis(4.76, 5.76, 0.01, 0.01)
     j_axis = _axis(2.21, 3.21, 0.01, 0.01)

@@ -9,7 +9,7 @@ from stiction_ros.analysis.mismatch import decide
 from stiction_ros.analysis.mismatch import frictionless
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import stats
-from stiction_ros.concealed_cases import concealed_case
+from stiction_ros.sim.concealed_cases import concealed_case
 
 
 @pytest.fixture(scope='module')
@@ -174,7 +174,7 @@ def test_without_a_held_out_part_friction_rests_on_the_fitted_part(loop):
 
 
 def test_a_rate_limited_actuator_is_a_rate_limit_not_friction(loop):
-    from stiction_ros.analysis.mismatch.chain_kernel import limited
+    from stiction_ros.kernels.chain import limited
     d, _ = loop
     rate = 0.3 * float(np.max(np.abs(np.diff(d['op']))))
     mv = limited(d['op'], [(0, len(d['op']))], rate) + _noise(len(d['op']), 0.1)

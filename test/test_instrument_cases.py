@@ -4,8 +4,8 @@ from bench.instrument_bench import case_list, score, write_section
 import numpy as np
 import pytest
 
-from stiction_ros.instrument_cases import CASES, instrument_case
 from stiction_ros.models.lags import first_order_pole
+from stiction_ros.sim.instrument_cases import CASES, instrument_case
 
 N = 1500
 SEEDS = range(600000, 600006)

@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 from ros_helpers import start_node, stop, wait_for
 from std_msgs.msg import Float64
+from stiction_ros.analysis.measures.measure_sj import measure_sj
+from stiction_ros.app.live_summary import summarise
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.loop import run_loop
-from stiction_ros.live_summary import summarise
-from stiction_ros.loop_config import load_loop, resolve_loop
-from stiction_ros.measure_sj import measure_sj
 from stiction_ros.models import Kano
 from stiction_ros.nodes.sampled import DATA_QOS
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
+from stiction_ros.sim.loop_config import load_loop, resolve_loop
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 RTF = 100.0

@@ -98,7 +98,7 @@ def settled_mse(rec, settle=60):
 
 def test_inject_options_are_checked():
     from stiction_ros.cli.loop import parse_inject
-    from stiction_ros.loop_config import ConfigError
+    from stiction_ros.sim.loop_config import ConfigError
     assert parse_inject(['op:drop=0.1,jitter=0.02', 'pv:delay=0.5,seed=4']) == {
         'op': {'drop': 0.1, 'jitter': 0.02}, 'pv': {'delay': 0.5, 'seed': 4}}
     for bad in ('sp:drop=0.1', 'op:lose=0.1', 'op:drop=lots', 'op:drop'):

@@ -10,7 +10,7 @@ import time
 import pytest
 from rcl_interfaces.msg import ParameterType
 from ros_helpers import start_node, stop
-from stiction_ros.paths import config_file
+from stiction_ros.resources import config_file
 
 pytestmark = pytest.mark.ros
 TS = 0.05

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from stiction_ros.plant import PlantError, TransferFunctionPlant
+from stiction_ros.sim.plant import PlantError, TransferFunctionPlant
 
 
 @pytest.mark.parametrize('delay', [0.0, 10.0, 2.5, 0.3])

@@ -16,7 +16,7 @@ from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.record import InputError
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.bag.writer import BagWriter
-from stiction_ros.loop_config import ConfigError, load_loop
+from stiction_ros.sim.loop_config import ConfigError, load_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = sorted((ROOT / 'stiction_ros').rglob('*.py')) + sorted((ROOT / 'launch').glob('*.py'))

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from stiction_ros.limit_cycle import measure_oscillation
-from stiction_ros.sources import Triangle
-from stiction_ros.waveform import shape_fit
+from stiction_ros.analysis.measures.limit_cycle import measure_oscillation
+from stiction_ros.analysis.measures.waveform import shape_fit
+from stiction_ros.sim.sources import Triangle
 
 
 def test_regular_sine_period_and_amplitude():

@@ -13,13 +13,13 @@ from stiction_ros.analysis.signatures.ellipse import (conic_to_matrix, ellipse, 
                                                       geometry)
 from stiction_ros.analysis.signatures.he_curve_fit import he_curve_fit
 from stiction_ros.analysis.signatures.horch import horch
-from stiction_ros.analysis.signatures.plots import signature_figure
 from stiction_ros.analysis.signatures.result import Signature
 from stiction_ros.analysis.signatures.yamashita import yamashita
-from stiction_ros.closed_loop import build_controller, build_plant, build_valve, simulate_loop
-from stiction_ros.loop_config import load_loop
-from stiction_ros.paths import config_file
-from stiction_ros.sources import triangle_wave
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import build_controller, build_plant, build_valve, simulate_loop
+from stiction_ros.sim.loop_config import load_loop
+from stiction_ros.sim.sources import triangle_wave
+from stiction_ros.viz.signature_plots import signature_figure
 
 LOOP = config_file('concentration_loop.yaml')
 NOISE = {'noise': {'pv_std': 0.02, 'seed': 3}}

@@ -6,7 +6,7 @@ import pytest
 from stiction_ros.analysis.signatures.all import compute_signatures
 from stiction_ros.analysis.signatures.slip_events import slip_events
 from stiction_ros.analysis.verdict import from_signatures
-from stiction_ros.disturbed_loops import disturbed_loop
+from stiction_ros.sim.disturbed_loops import disturbed_loop
 
 
 def hand_made_slip(turn_back=True, toward=True, n=400, at=300):

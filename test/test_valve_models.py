@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from stiction_ros.measure_sj import measure_sj
+from stiction_ros.analysis.measures.measure_sj import measure_sj
 from stiction_ros.models import Choudhury, create, He, Kano, Linear, ModelError, MODELS, Stenman
 
 TWO_PARAM = ('kano', 'choudhury', 'he')

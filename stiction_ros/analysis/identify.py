@@ -29,15 +29,13 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis import sse_kernels
+from stiction_ros.analysis import fit_core
+from stiction_ros.errors import IdentifyError
+from stiction_ros.kernels import sse as sse_kernels
 from stiction_ros.models.lags import first_order_pole
 
 KERNELS = {'kano': 0, 'choudhury': 1}
 CHI2_95_2DOF = 5.991464547107979
-
-
-class IdentifyError(ValueError):
-    """The data cannot support identification (too short, no MV, flat OP)."""
 
 
 @dataclass
@@ -85,24 +83,23 @@ def segment_bounds(n, segments=None):
             np.array([b for _, b in segments], dtype=np.int64))
 
 
-class Problem:
-    """The data and model of one identification: scores (S, J) pairs."""
+class ValveProblem(fit_core.Problem):
+    """The data and model of one identification (OP -> MV): scores (S, J) pairs."""
 
     def __init__(self, model, op, mv, segments=None, filter_value=None, sample_time=1.0):
         if model not in KERNELS:
             raise IdentifyError(f'unknown model {model!r}; choose from {sorted(KERNELS)}')
-        self.model = model
-        self.op = np.ascontiguousarray(op, dtype=np.float64)
-        self.mv = np.ascontiguousarray(mv, dtype=np.float64)
-        if self.op.shape != self.mv.shape:
+        op = np.ascontiguousarray(op, dtype=np.float64)
+        mv = np.ascontiguousarray(mv, dtype=np.float64)
+        if op.shape != mv.shape:
             raise IdentifyError('op and mv must have the same length')
-        self.starts, self.stops = segment_bounds(len(self.op), segments)
-        self.n = int(np.sum(self.stops - self.starts))
+        super().__init__(op, mv, *segment_bounds(len(op), segments))
+        self.model = model
+        self.op, self.mv = self.u, self.y
         self.sample_time = float(sample_time)
         self.filter_name = 'tau' if model == 'kano' else 'lam'
         self.filter_value = filter_value
         self.f = self._kernel_filter(filter_value)
-        self.evaluations = 0
 
     def _kernel_filter(self, value):
         if self.model == 'kano':
@@ -279,7 +276,7 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
     best = None
     problems = []
     for fv in candidates:
-        problem = Problem(model, op, mv, segments, fv, sample_time)
+        problem = ValveProblem(model, op, mv, segments, fv, sample_time)
         problems.append(problem)
         sse, S, J = search(problem, s_max, j_max, resolution, progress=progress)
         if best is None or sse < best[0]:
@@ -297,14 +294,14 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
 
 def given_fit(op, mv, model, S, J, segments=None, sample_time=1.0, filter_value=None):
     """Return the :class:`Fit` (MSE of eq. 2.8) of ``model`` with the given S and J."""
-    problem = Problem(model, op, mv, segments, filter_value, sample_time)
+    problem = ValveProblem(model, op, mv, segments, filter_value, sample_time)
     return Fit(model, float(S), float(J), problem.mse(S, J), 'given', problem.n,
                problem.filter_name if filter_value is not None else None, filter_value)
 
 
 def mse_landscape(op, mv, fit, segments=None, sample_time=1.0, half_width=0.5, points=51):
     """Return the MSE on a grid around ``fit`` and the 95 % bound, for the report's figure."""
-    problem = Problem(fit.model, op, mv, segments, fit.filter_value, sample_time)
+    problem = ValveProblem(fit.model, op, mv, segments, fit.filter_value, sample_time)
     s_ax = np.linspace(max(0.0, fit.S - half_width), fit.S + half_width, points)
     j_ax = np.linspace(max(0.0, fit.J - half_width), fit.J + half_width, points)
     # Abandon far-off points: the colour scale saturates there anyway.

@@ -3,9 +3,10 @@ From a loaded record to the analyzer's report: fits, signatures and the verdict.
 
 ``analyze(record, options)`` returns a :class:`Analysis`: the JSON report
 (documented field by field in the README) plus the arrays the figures need.
-Nothing here reads files or draws; ``stiction_ros.cli.analyze`` does both.
+Nothing here reads files or draws; ``stiction_ros.app.analyze`` does both.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 import re
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from stiction_ros.analysis.detection import detect, Detection, Judgeable
 from stiction_ros.analysis.identify import given_fit, identify, IdentifyError
-from stiction_ros.analysis.record import runs
+from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine
 from stiction_ros.models import create
 
@@ -203,7 +204,8 @@ def run_detection(record, win, held, integrating, model_path=None):
                   model_path)
 
 
-def analyze(record, options=None, progress=None):
+def analyze(record: Record, options: Options | None = None,
+            progress: Callable[[int, int], object] | None = None) -> Analysis:
     """Return the :class:`Analysis` of ``record``."""
     options = options or Options()
     notes = list(record.notes)

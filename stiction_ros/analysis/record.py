@@ -23,17 +23,12 @@ import math
 
 import numpy as np
 
+from stiction_ros.errors import InputError
+
 SIGNALS = ('op', 'mv', 'pv', 'sp')
 MIN_VALID = 10
 # Notes itemise up to this many stretches of one reason, then summarise.
 ITEMISED = 3
-
-
-class InputError(ValueError):
-    """The input cannot be analysed; a one-line message names the file and the problem."""
-
-    def __init__(self, message):
-        super().__init__(' '.join(str(message).splitlines()))
 
 
 @dataclass(eq=False)

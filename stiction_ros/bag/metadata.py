@@ -8,6 +8,7 @@ the outer ``rosbag2_bagfile_information`` key, as rosbag2_storage_mcap does.
 """
 
 import os
+from typing import Any, Iterable
 
 import yaml
 
@@ -16,7 +17,8 @@ VERSION = 9
 INFINITE = {'sec': 9223372036, 'nsec': 854775807}
 
 
-def qos_profile(reliability='reliable', durability='volatile', history='keep_last', depth=10):
+def qos_profile(reliability: str = 'reliable', durability: str = 'volatile',
+                history: str = 'keep_last', depth: int = 10) -> dict[str, Any]:
     """Return one offered QoS profile as rosbag2 version 9 stores it."""
     return {
         'history': history, 'depth': int(depth), 'reliability': reliability,
@@ -26,12 +28,13 @@ def qos_profile(reliability='reliable', durability='volatile', history='keep_las
     }
 
 
-def qos_yaml(profiles):
+def qos_yaml(profiles: Iterable[dict[str, Any]]) -> str:
     """Return the channel-metadata form of a list of QoS profiles (a YAML string)."""
     return yaml.safe_dump(list(profiles), sort_keys=False, default_flow_style=False).rstrip('\n')
 
 
-def bag_metadata(file_name, topics, start_ns, end_ns, ros_distro=None):
+def bag_metadata(file_name: str, topics: list[dict[str, Any]], start_ns: int, end_ns: int,
+                 ros_distro: str | None = None) -> dict[str, Any]:
     """
     Return the bag metadata mapping (the content under rosbag2_bagfile_information).
 
@@ -70,11 +73,11 @@ def bag_metadata(file_name, topics, start_ns, end_ns, ros_distro=None):
     }
 
 
-def metadata_yaml(meta):
+def metadata_yaml(meta: dict[str, Any]) -> str:
     """Return the text of ``metadata.yaml`` for a bag metadata mapping."""
     return yaml.safe_dump({'rosbag2_bagfile_information': meta}, sort_keys=False)
 
 
-def serialized_metadata(meta):
+def serialized_metadata(meta: dict[str, Any]) -> str:
     """Return the text of the ``rosbag2`` MCAP metadata record for a bag metadata mapping."""
     return yaml.safe_dump(meta, sort_keys=False)

@@ -13,6 +13,8 @@ from pathlib import Path
 import re
 import sys
 
+from stiction_ros.errors import DefinitionNotFound
+
 SEPARATOR = '=' * 80
 PRIMITIVES = {
     'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
@@ -21,11 +23,7 @@ PRIMITIVES = {
 _FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)(?:<=\d+)?(?:\[[^\]]*\])?\s+[A-Za-z0-9_]+')
 
 
-class DefinitionNotFound(LookupError):
-    """No ``.msg`` file for a type is installed where we looked."""
-
-
-def share_dirs():
+def share_dirs() -> list[Path]:
     """Return the ``share`` directories to search: AMENT_PREFIX_PATH, then the venv's."""
     out = [Path(p) / 'share' for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
            if p]
@@ -33,7 +31,7 @@ def share_dirs():
     return out
 
 
-def msg_text(type_name):
+def msg_text(type_name: str) -> str:
     """Return the ``.msg`` text of ``pkg/msg/Type`` (``pkg/Type`` is accepted too)."""
     pkg, name = _split(type_name)
     for share in share_dirs():
@@ -45,7 +43,7 @@ def msg_text(type_name):
         + ', '.join(str(s / pkg / 'msg') for s in share_dirs()))
 
 
-def _split(type_name):
+def _split(type_name: str) -> tuple[str, str]:
     parts = type_name.split('/')
     if len(parts) == 3 and parts[1] == 'msg':
         return parts[0], parts[2]
@@ -54,7 +52,7 @@ def _split(type_name):
     raise DefinitionNotFound(f'{type_name!r} is not a message type name like std_msgs/msg/Float64')
 
 
-def dependencies(type_name, text):
+def dependencies(type_name: str, text: str) -> list[str]:
     """Return the non-primitive field types of ``text`` as ``pkg/Type``, sorted."""
     pkg, _ = _split(type_name)
     deps = set()
@@ -72,7 +70,7 @@ def dependencies(type_name, text):
     return sorted(deps)
 
 
-def schema_text(type_name):
+def schema_text(type_name: str) -> str:
     """
     Return the ``ros2msg`` schema text of a type: its ``.msg`` then every dependency.
 
@@ -81,7 +79,7 @@ def schema_text(type_name):
     """
     seen = set()
 
-    def walk(name):
+    def walk(name: str) -> str:
         text = msg_text(name)
         out = [text]
         for dep in dependencies(name, text):

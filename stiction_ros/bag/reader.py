@@ -4,7 +4,7 @@ Read a bag (rosbag2 directory or bare ``.mcap``), tolerating a truncated file.
 The file is scanned from the start, so a bag whose recorder was killed
 still yields every message of every complete chunk; the result then says
 ``complete = False`` with a warning instead of failing.  Chunks are indexed
-in one compiled pass (``chunk_scan.py``) and messages stay in the
+in one compiled pass (``stiction_ros.kernels.mcap_scan``) and messages stay in the
 decompressed chunk buffers; ``std_msgs/Float64`` topics decode straight into
 numpy, other types through ``mcap_ros2``.
 """
@@ -14,24 +14,26 @@ from io import BytesIO
 import os
 from pathlib import Path
 import struct
+from typing import Any, BinaryIO, Callable, Container, Generator
 import zlib
 
 import lz4.frame
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, ChunkIndex, Message, Metadata, Schema, Statistics
+from mcap.records import (
+    Channel, Chunk, ChunkIndex, McapRecord, Message, Metadata, Schema, Statistics)
 import numpy as np
-from stiction_ros.bag.chunk_scan import gather_float64, OP_CHANNEL, OP_SCHEMA, scan_chunk
+from stiction_ros.errors import BagReadError
+from stiction_ros.kernels.arrays import Bytes, Floats, Ints
+from stiction_ros.kernels.mcap_scan import gather_float64, OP_CHANNEL, OP_SCHEMA, scan_chunk
 import yaml
 import zstandard
 
 # The largest record or decompressed chunk believed: a bigger length field is corruption
 # (rosbag2 and this package write chunks of about 1 MiB), and trusting it would allocate it.
 RECORD_LIMIT = 256 * 2**20
-
-
-class BagReadError(ValueError):
-    """The input is not a readable bag; the message names the file and the problem."""
+# Messages held in a buffer: (buffer, offsets, lengths, log times, publish times).
+Segment = tuple[Bytes, Ints, Ints, Ints, Ints]
 
 
 @dataclass
@@ -46,29 +48,30 @@ class Topic:
 
     name: str
     type: str  # noqa: A003  (the ROS word for it)
-    schema: object = None
+    schema: Schema | None = None
     qos: str = ''
     type_hash: str = ''
-    _segments: list = field(default_factory=list, repr=False)
-    _pending: list = field(default_factory=list, repr=False)
+    _segments: list[Segment] = field(default_factory=list, repr=False)
+    _pending: list[tuple[bytes, int, int]] = field(default_factory=list, repr=False)
 
-    def add(self, buf, offsets, lengths, log_time, publish_time):
+    def add(self, buf: Bytes, offsets: Ints, lengths: Ints, log_time: Ints,
+            publish_time: Ints) -> None:
         """Append messages held in ``buf`` at ``offsets`` (arrays of equal length)."""
         self._flush()
         if len(offsets):
             self._segments.append((buf, offsets, lengths, log_time, publish_time))
 
-    def adopt(self, other):
+    def adopt(self, other: 'Topic') -> None:
         """Take the messages of ``other`` (found before this topic's channel) first."""
         other._flush()
         self._flush()
         self._segments[:0] = other._segments
 
-    def add_one(self, data, log_time, publish_time):
+    def add_one(self, data: bytes, log_time: int, publish_time: int) -> None:
         """Append one message given as bytes (records outside chunks)."""
         self._pending.append((bytes(data), int(log_time), int(publish_time)))
 
-    def _flush(self):
+    def _flush(self) -> None:
         if not self._pending:
             return
         pend, self._pending = self._pending, []
@@ -79,54 +82,61 @@ class Topic:
                                np.array([t for _, t, _ in pend], dtype=np.int64),
                                np.array([t for _, _, t in pend], dtype=np.int64)))
 
-    def _column(self, i):
+    def _column(self, i: int) -> Ints:
         self._flush()
         if not self._segments:
             return np.empty(0, dtype=np.int64)
         return np.concatenate([seg[i] for seg in self._segments])
 
     @property
-    def count(self):
+    def count(self) -> int:
         """Return the number of messages."""
         return sum(len(seg[1]) for seg in self._segments) + len(self._pending)
 
     @property
-    def log_time(self):
+    def log_time(self) -> Ints:
         """Return the log (receive) times in ns, an int64 array."""
         return self._column(3)
 
     @property
-    def publish_time(self):
+    def publish_time(self) -> Ints:
         """Return the publish (send) times in ns, an int64 array."""
         return self._column(4)
 
     @property
-    def data(self):
+    def data(self) -> list[bytes]:
         """Return the serialised messages as a list of bytes."""
         self._flush()
         return [buf[o:o + n].tobytes() for buf, offs, lens, _, _ in self._segments
                 for o, n in zip(offs.tolist(), lens.tolist())]
 
-    def times(self):
+    def times(self) -> Floats:
         """Return the log (receive) times in seconds as a numpy array."""
         return self.log_time / 1e9
 
-    def values(self):
+    def values(self) -> Floats | list[Any]:
         """Return the messages decoded: a float array for Float64, else decoded objects."""
         if self.type == 'std_msgs/msg/Float64':
             self._flush()
             parts = [gather_float64(buf, offs, lens) for buf, offs, lens, _, _ in self._segments]
             if all(p is not None for p in parts):
-                return np.concatenate(parts) if parts else np.empty(0)
+                # all() has ruled out None, which the checker cannot follow.
+                return np.concatenate(parts) if parts else np.empty(0)  # type: ignore[arg-type]
             return np.array([m.data for m in self.decoded()], dtype=np.float64)
         return self.decoded()
 
-    def decoded(self):
+    def decoded(self) -> list[Any]:
         """Return every message decoded by ``mcap_ros2`` from the bag's own schema."""
         from mcap_ros2.decoder import DecoderFactory
         if self.schema is None:
             raise BagReadError(f'{self.name}: no schema in the bag; cannot decode')
         decode = DecoderFactory().decoder_for('cdr', self.schema)
+        if decode is None:
+            # mcap_ros2 decodes ros2msg schemas only (an IDL or JSON one gives no decoder).
+            raise BagReadError(
+                f'{self.name}: schema {self.schema.name!r} is encoded as '
+                f'{self.schema.encoding!r}; only ros2msg schemas (what rosbag2 writes) can be '
+                'decoded')
         return [decode(d) for d in self.data]
 
 
@@ -135,12 +145,12 @@ class Bag:
     """What a bag holds: topics by name, whether the file was complete, warnings."""
 
     path: Path
-    topics: dict
+    topics: dict[str, Topic]
     complete: bool
-    warnings: list
-    metadata: dict = None
+    warnings: list[str]
+    metadata: dict[str, Any] | None = None
 
-    def topic(self, name):
+    def topic(self, name: str) -> Topic:
         """Return a topic by exact name, or by its last name component (``op``)."""
         if name in self.topics:
             return self.topics[name]
@@ -152,7 +162,7 @@ class Bag:
         raise BagReadError(f'{self.path}: {name!r} is ambiguous: {sorted(t.name for t in hits)}')
 
 
-def mcap_files(path):
+def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
     """Return the MCAP files of a bag directory (in order) or ``[path]`` for a file."""
     path = Path(path)
     if not path.exists():
@@ -174,7 +184,7 @@ def mcap_files(path):
     return files
 
 
-def read_bag(path):
+def read_bag(path: str | os.PathLike[str]) -> Bag:
     """Read every message of a bag; never raise on damage, only on unreadable input."""
     path = Path(path)
     state = _ReadState()
@@ -223,7 +233,15 @@ _DAMAGE = (McapError, EOFError, ValueError, KeyError, IndexError, struct.error,
 class _ReadState:
     """Schemas, channels and topics gathered over the files of one bag."""
 
-    def __init__(self):
+    schemas: dict[int, Schema]
+    channels: dict[int, Topic]
+    topics: dict[str, Topic]
+    warnings: list[str]
+    metadata: str | None
+    orphans: dict[int, Topic]
+    statistics: dict[Path, int]
+
+    def __init__(self) -> None:
         self.schemas, self.channels, self.topics, self.warnings = {}, {}, {}, []
         self.metadata = None
         # Messages whose channel record was lost with a damaged chunk, by channel id:
@@ -231,11 +249,11 @@ class _ReadState:
         self.orphans = {}
         self.statistics = {}
 
-    def count(self):
+    def count(self) -> int:
         return (sum(t.count for t in self.topics.values())
                 + sum(t.count for t in self.orphans.values()))
 
-    def take(self, file, op, body):
+    def take(self, file: Path, op: int, body: bytes) -> None:
         """Parse one record found outside a chunk; a damaged one is skipped with a warning."""
         try:
             rec = _READERS[op](ReadDataStream(BytesIO(body)), len(body)) if op == 0x05 \
@@ -250,7 +268,7 @@ class _ReadState:
             what = {0x06: 'a chunk', 0x05: 'a message'}.get(op, f'a record (opcode {op:#04x})')
             self.warnings.append(f'{file.name}: {what} is damaged ({_why(err)}); skipped')
 
-    def record(self, file, rec):
+    def record(self, file: Path, rec: McapRecord) -> None:
         """Take one parsed record: from outside a chunk, or a schema or channel in one."""
         if isinstance(rec, Message):
             self._topic(file, rec.channel_id).add_one(rec.data, rec.log_time, rec.publish_time)
@@ -268,7 +286,7 @@ class _ReadState:
         elif isinstance(rec, Metadata) and rec.name == 'rosbag2':
             self.metadata = rec.metadata.get('serialized_metadata', self.metadata)
 
-    def chunk(self, file, chunk):
+    def chunk(self, file: Path, chunk: Chunk) -> None:
         """Index a chunk's records in one pass; its messages stay in its buffer."""
         data = _decompress(chunk)
         if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
@@ -289,14 +307,14 @@ class _ReadState:
             sel = np.flatnonzero(chan == cid)
             self._topic(file, int(cid)).add(buf, off[sel], ln[sel], log[sel], pub[sel])
 
-    def _topic(self, file, channel_id):
+    def _topic(self, file: Path, channel_id: int) -> Topic:
         topic = self.channels.get(channel_id)
         if topic is None:
             topic = self.orphans.setdefault(channel_id, Topic(name=f'channel {channel_id}',
                                                               type=''))
         return topic
 
-    def finish(self):
+    def finish(self) -> None:
         """Warn about messages whose channel never appeared."""
         for cid, topic in sorted(self.orphans.items()):
             self.warnings.append(f'{topic.count} messages on channel {cid}, which no channel '
@@ -308,19 +326,20 @@ _MAGIC = b'\x89MCAP0\r\n'
 # Record readers by opcode; every other record (message indexes, the rest of the summary)
 # is skipped: the scan from the start needs none of them, and parsing an index costs per
 # message.
-_READERS = {0x03: Schema.read, 0x04: Channel.read, 0x05: Message.read, 0x06: Chunk.read,
-            0x0B: Statistics.read, 0x0C: Metadata.read}
+_READERS: dict[int, Callable[..., McapRecord]] = {
+    0x03: Schema.read, 0x04: Channel.read, 0x05: Message.read, 0x06: Chunk.read,
+    0x0B: Statistics.read, 0x0C: Metadata.read}
 
 
 class _Framing:
     """The records of an MCAP file, and where the last whole one ended."""
 
-    def __init__(self, f):
+    def __init__(self, f: BinaryIO) -> None:
         self.f = f
         self.size = os.fstat(f.fileno()).st_size
         self.good_end = 0
 
-    def records(self):
+    def records(self) -> Generator[tuple[int, bytes], None, None]:
         """
         Yield ``(opcode, body)`` of the records the reader uses, up to the footer.
 
@@ -333,7 +352,8 @@ class _Framing:
         if not (yield from self.walk(_READERS, self.size)):
             raise EOFError('no footer')
 
-    def walk(self, wanted, end):
+    def walk(self, wanted: Container[int],
+             end: int) -> Generator[tuple[int, bytes], None, bool]:
         """
         Yield ``(opcode, body)`` of the ``wanted`` records from here to ``end``.
 
@@ -358,7 +378,7 @@ class _Framing:
         return False
 
 
-def _check_length(length, left):
+def _check_length(length: int, left: int) -> None:
     if length > RECORD_LIMIT:
         raise ValueError(f'a record claims {length} bytes, over the {RECORD_LIMIT}-byte '
                          'limit: the length field is corrupt')
@@ -367,7 +387,7 @@ def _check_length(length, left):
         raise EOFError('file ends inside a record')
 
 
-def _rescue(file, frames, state, err):
+def _rescue(file: Path, frames: _Framing, state: _ReadState, err: Exception) -> None:
     """
     Read the chunks after a break in the framing through the summary's chunk index.
 
@@ -400,7 +420,7 @@ def _rescue(file, frames, state, err):
                           f'{taken} chunks after it through the summary index')
 
 
-def _summary(frames):
+def _summary(frames: _Framing) -> tuple[list[tuple[int, bytes]], list[tuple[int, int]]] | None:
     """Return the summary's (schema and channel records, chunk (offset, length) list), or None."""
     f = frames.f
     footer_at = frames.size - len(_MAGIC) - 29
@@ -424,7 +444,7 @@ def _summary(frames):
     return records, sorted(chunks)
 
 
-def _decompress(chunk):
+def _decompress(chunk: Chunk) -> bytes:
     size = chunk.uncompressed_size
     if size > RECORD_LIMIT:
         raise ValueError(f'a chunk claims {size} bytes uncompressed, over the '
@@ -443,7 +463,7 @@ def _decompress(chunk):
         lz4d = lz4.frame.LZ4FrameDecompressor()
         first = [chunk.data]
 
-        def more(n):
+        def more(n: int) -> bytes:
             if lz4d.eof:
                 return b''
             return lz4d.decompress(first.pop() if first else b'', max_length=n)
@@ -452,7 +472,7 @@ def _decompress(chunk):
                      'decompress (zstd, lz4 or none)')
 
 
-def _pieces(read, size, piece=1 << 20):
+def _pieces(read: Callable[[int], bytes], size: int, piece: int = 1 << 20) -> bytes:
     """Return exactly ``size`` bytes from ``read(n)`` calls, or raise ValueError."""
     parts, got = [], 0
     while got <= size:
@@ -467,6 +487,6 @@ def _pieces(read, size, piece=1 << 20):
     return b''.join(parts)
 
 
-def _why(err):
+def _why(err: BaseException) -> str:
     text = str(err).strip()
     return f'{type(err).__name__}: {text}' if text else type(err).__name__

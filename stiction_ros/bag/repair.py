@@ -15,7 +15,7 @@ from stiction_ros.bag.writer import BagWriter
 import yaml
 
 
-def repair_bag(path, compression='zstd'):
+def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
     """Repair the bag directory ``path`` in place; return a one-line summary."""
     path = Path(path)
     if not path.is_dir():
@@ -32,7 +32,7 @@ def repair_bag(path, compression='zstd'):
     if tmp.exists():
         shutil.rmtree(tmp)
     writer = BagWriter(tmp, compression=compression, file_name=src.name)
-    order = []
+    order: list[tuple[int, int, str, bytes]] = []
     for topic in bag.topics.values():
         try:
             qos = yaml.safe_load(topic.qos) if topic.qos else []

@@ -10,11 +10,13 @@ the summary and ``metadata.yaml`` from the chunks on disk.
 
 import os
 from pathlib import Path
+from typing import Any, Iterable
 
 from mcap.writer import CompressionType, IndexType, Writer
 from stiction_ros import __version__
 from stiction_ros.bag.metadata import bag_metadata, metadata_yaml, qos_yaml, serialized_metadata
 from stiction_ros.bag.msg_definitions import schema_text
+from stiction_ros.errors import BagError
 
 COMPRESSION = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                'none': CompressionType.NONE}
@@ -23,23 +25,21 @@ COMPRESSION = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
 INDEXES = IndexType.CHUNK | IndexType.MESSAGE | IndexType.METADATA
 
 
-class BagError(OSError):
-    """A bag cannot be written or read; the message names the path and the cause."""
-
-
 class _ChunkWriter(Writer):
     """The ``mcap`` writer, plus closing the open chunk on demand."""
 
-    def close_chunk(self):
+    def close_chunk(self) -> None:
         # mcap 1.6 has no public call for this; its private method is stable
-        # across 1.x and the recorder's SIGKILL test fails if it changes.
-        self._Writer__finalize_chunk()
+        # across 1.x and the recorder's SIGKILL test fails if it changes.  The
+        # type checker sees no name-mangled attributes, hence the ignore.
+        self._Writer__finalize_chunk()  # type: ignore[attr-defined]
 
 
 class BagWriter:
     """A bag being written; add topics, then messages, then :meth:`close`."""
 
-    def __init__(self, directory, compression='zstd', chunk_size=256 * 1024, file_name=None):
+    def __init__(self, directory: str | os.PathLike[str], compression: str = 'zstd',
+                 chunk_size: int = 256 * 1024, file_name: str | None = None) -> None:
         if compression not in COMPRESSION:
             raise BagError(f'compression {compression!r}: choose one of {sorted(COMPRESSION)}')
         self.directory = Path(directory)
@@ -56,17 +56,18 @@ class BagWriter:
         self._writer = _ChunkWriter(self._file, chunk_size=int(chunk_size),
                                     compression=COMPRESSION[compression], index_types=INDEXES)
         self._writer.start(profile='ros2', library=f'stiction_ros {__version__} (mcap-python)')
-        self._schemas = {}
-        self.topics = {}
-        self._start = None
-        self._end = None
+        self._schemas: dict[str, int] = {}
+        self.topics: dict[str, dict[str, Any]] = {}
+        self._start: int | None = None
+        self._end: int | None = None
         self._closed = False
         # metadata.yaml is written now so that the directory is a recognisable
         # bag from the start; the rosbag2 record goes in once, at close
         # (validators warn about two records of the same name).
         self._write_metadata()
 
-    def add_topic(self, name, type_name, qos_profiles, type_hash='', schema_data=None):
+    def add_topic(self, name: str, type_name: str, qos_profiles: Iterable[dict[str, Any]],
+                  type_hash: str = '', schema_data: bytes | None = None) -> int:
         """
         Register a topic once; return its channel id.
 
@@ -87,7 +88,8 @@ class BagWriter:
                              'type_hash': type_hash, 'count': 0, 'channel': channel}
         return channel
 
-    def write(self, topic, data, log_time, publish_time=None):
+    def write(self, topic: str, data: bytes, log_time: int,
+              publish_time: int | None = None) -> None:
         """Append one CDR-serialised message (bytes) received at ``log_time`` (ns)."""
         entry = self.topics[topic]
         log_time = int(log_time)
@@ -99,28 +101,28 @@ class BagWriter:
         self._start = log_time if self._start is None else min(self._start, log_time)
         self._end = log_time if self._end is None else max(self._end, log_time)
 
-    def flush_chunk(self):
+    def flush_chunk(self) -> None:
         """Write the open chunk to disk now (bounds what a crash can lose)."""
         self._writer.close_chunk()
         self._file.flush()
 
     @property
-    def message_count(self):
+    def message_count(self) -> int:
         """Return the number of messages written so far."""
         return sum(t['count'] for t in self.topics.values())
 
-    def metadata(self):
+    def metadata(self) -> dict[str, Any]:
         """Return the bag metadata mapping for what was written so far."""
         return bag_metadata(self.file_name, list(self.topics.values()), self._start or 0,
                             self._end or 0)
 
-    def _write_metadata(self):
+    def _write_metadata(self) -> None:
         meta = self.metadata()
         tmp = self.directory / 'metadata.yaml.tmp'
         tmp.write_text(metadata_yaml(meta), encoding='utf-8')
         os.replace(tmp, self.directory / 'metadata.yaml')
 
-    def close(self):
+    def close(self) -> None:
         """Finish the MCAP (summary and index) and write the final ``metadata.yaml``."""
         if self._closed:
             return

@@ -8,7 +8,7 @@ DATA_DIR holds ``stiction/`` and ``no_stiction/`` folders of recordings (by
 default the shared plant loops).  Every file is analysed by the same code as
 ``stiction-analyze`` and its JSON and HTML reports are written under
 ``--reports``.  Then the simulated test set (seeds never used for training
-or tuning) is drawn and scored.  See ``stiction_ros.analysis.accuracy_study``
+or tuning) is drawn and scored.  See ``stiction_ros.study.accuracy_study``
 for the protocol.
 """
 
@@ -24,12 +24,12 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.accuracy import cross_validate, signature_alone, SIGNATURES
-from stiction_ros.analysis.accuracy_study import (
-    best_threshold, by_kind, per_tag, score, sim_rows)
 from stiction_ros.analysis.detection import dataset, FEATURE_NAMES, load_model
+from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.cli.accuracy_markdown import markdown
-from stiction_ros.cli.analyze import run_analysis
+from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
+from stiction_ros.study.accuracy_study import (
+    best_threshold, by_kind, per_tag, score, sim_rows)
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
@@ -49,12 +49,10 @@ def analyse_all(data_dir, reports):
     for i, (lab, f) in enumerate(files, 1):
         print(f'[{i}/{len(files)}] {lab}/{f.name}', file=sys.stderr, flush=True)
         out = Path(reports) / lab / f.stem
-        args = argparse.Namespace(
-            input=str(f), model='both', S=None, J=None, fit_filter=False, window=None,
-            namespace=None, loop_type='auto', no_hammerstein=False,
-            json_path=str(out) + '.json', html_path=str(out) + '.html')
+        options = AnalyzeOptions(input=str(f), json_path=str(out) + '.json',
+                                 html_path=str(out) + '.html')
         t0 = time.perf_counter()
-        a = run_analysis(args, lambda msg: None)
+        a = analyze_file(options)
         cases.append({'label': lab == 'stiction', 'group': loop_group(a.record.name),
                       'file': f.name, 'report': a.report, 'seconds': time.perf_counter() - t0,
                       'oscillation': a.oscillation, 'signatures': a.signatures})

@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.accuracy import balanced_accuracy, confusion
 from stiction_ros.analysis.detection import dataset, model_file
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
+from stiction_ros.study.accuracy import balanced_accuracy, confusion
 
 
 def parser() -> argparse.ArgumentParser:

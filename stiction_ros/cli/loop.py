@@ -27,21 +27,18 @@ import sys
 import tempfile
 import time
 
-from stiction_ros.bag.reader import BagReadError, read_bag
+from stiction_ros.app.live_summary import format_summary, summarise
+from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.sim import parse_set
-from stiction_ros.live_summary import format_summary, summarise
-from stiction_ros.loop_config import ConfigError, load_loop
-from stiction_ros.ros_params import loop_extras, LOOP_NODES, params_file
+from stiction_ros.errors import LoopError, StictionError
+from stiction_ros.sim.loop_config import ConfigError, load_loop
+from stiction_ros.sim.ros_params import loop_extras, LOOP_NODES, params_file
 
 MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'valve_node',
            'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
 # The node that consumes each loop topic: where its injected faults happen.
 CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
 INJECT_KEYS = ('drop', 'delay', 'jitter', 'seed')
-
-
-class LoopError(RuntimeError):
-    """The loop could not run; the message says which node and why."""
 
 
 # A loop node is restarted only after it ran this long (s).
@@ -269,7 +266,7 @@ def main(argv=None):
             print(f'bag: {bag}')
             if args.json:
                 Path(args.json).write_text(json.dumps(summary, indent=2), encoding='utf-8')
-    except (ConfigError, LoopError, BagReadError, ValueError) as err:
+    except (StictionError, OSError) as err:
         print(f'loop: error: {err}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -10,11 +10,11 @@ Examples::
 import argparse
 import sys
 
-from stiction_ros.closed_loop import simulate_loop, write_csv
-from stiction_ros.loop_config import ConfigError, load_loop
 from stiction_ros.models import ModelError
-from stiction_ros.plant import PlantError
-from stiction_ros.sources import SourceError
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import ConfigError, load_loop
+from stiction_ros.sim.plant import PlantError
+from stiction_ros.sim.sources import SourceError
 import yaml
 
 

@@ -13,8 +13,8 @@ from pathlib import Path
 import platform
 import sys
 
-from stiction_ros.paths import config_file
-from stiction_ros.reproduction import run_study, write_report
+from stiction_ros.resources import config_file
+from stiction_ros.study.reproduction import run_study, write_report
 
 
 def machine_description():

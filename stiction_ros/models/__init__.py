@@ -10,6 +10,8 @@ Every model has ``simulate(u)`` (whole array, from rest), ``reset(y0)``,
 ``set_params(**changes)``.  Nothing here imports rclpy.
 """
 
+from typing import Any
+
 from stiction_ros.models.base import ModelError, ValveModel
 from stiction_ros.models.choudhury import Choudhury
 from stiction_ros.models.he import He
@@ -19,14 +21,14 @@ from stiction_ros.models.linear import Linear
 from stiction_ros.models.physical import Physical
 from stiction_ros.models.stenman import Stenman
 
-MODELS = {cls.name: cls for cls in (Kano, Choudhury, Stenman, He, Physical, Linear,
-                                    KanoEffects)}
+MODELS: dict[str, type[ValveModel]] = {
+    cls.name: cls for cls in (Kano, Choudhury, Stenman, He, Physical, Linear, KanoEffects)}
 
 __all__ = ['Choudhury', 'create', 'He', 'Kano', 'KanoEffects', 'Linear', 'ModelError', 'MODELS',
            'Physical', 'Stenman', 'ValveModel']
 
 
-def create(name, **params):
+def create(name: str, **params: Any) -> ValveModel:
     """Build a model by name: kano, choudhury, stenman, he, physical or linear."""
     try:
         cls = MODELS[str(name).lower()]

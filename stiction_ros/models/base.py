@@ -12,15 +12,23 @@ fast compiled kernel can replace the Python one without changing behaviour.
 """
 
 import math
+from typing import Any, Callable, ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from stiction_ros.errors import ModelError
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import LoopArgs
+
+# Parameter name -> (default, low, high, description); ``low`` 'choice' makes ``high`` the
+# tuple of allowed values.
+ParamTable = dict[str, tuple[Any, Any, Any, str]]
+# A kernel: advance over input ``u``, writing ``y`` and updating ``state`` in place.
+Kernel = Callable[[Floats, Floats, Floats], None]
 
 
-class ModelError(ValueError):
-    """A model parameter or input is invalid; the message says which and why."""
-
-
-def check_finite(name, value, low=-math.inf, high=math.inf):
+def check_finite(name: str, value: Any, low: float = -math.inf, high: float = math.inf) -> float:
     """Return ``value`` as float if it is finite and within [low, high], else raise."""
     try:
         v = float(value)
@@ -33,12 +41,12 @@ def check_finite(name, value, low=-math.inf, high=math.inf):
     return v
 
 
-def clip(x, low=0.0, high=100.0):
+def clip(x: float, low: float = 0.0, high: float = 100.0) -> float:
     """Clamp a scalar to [low, high] (faster than numpy for one value)."""
     return low if x < low else high if x > high else x
 
 
-def as_signal(u, name='input'):
+def as_signal(u: ArrayLike, name: str = 'input') -> Floats:
     """Return ``u`` as a 1-D float64 array, rejecting NaN and infinities."""
     a = np.asarray(u, dtype=np.float64)
     if a.ndim != 1:
@@ -64,10 +72,10 @@ class ValveModel:
     ``PARAMS`` maps each parameter name to ``(default, low, high, description)``.
     """
 
-    name = 'base'
-    PARAMS = {}
+    name: ClassVar[str] = 'base'
+    PARAMS: ClassVar[ParamTable] = {}
 
-    def __init__(self, **params):
+    def __init__(self, **params: Any) -> None:
         unknown = set(params) - set(self.PARAMS)
         if unknown:
             raise ModelError(
@@ -76,12 +84,12 @@ class ValveModel:
         values = {k: spec[0] for k, spec in self.PARAMS.items()}
         values.update(params)
         self._params = self._validate(values)
-        self._y0 = None
-        self.state = None
+        self._y0: float | None = None
+        self.state: Floats | None = None
         self._on_params_changed()
 
     # -- parameters --------------------------------------------------------
-    def _validate(self, values):
+    def _validate(self, values: dict[str, Any]) -> dict[str, Any]:
         """Check every value against its range; subclasses add cross-checks."""
         out = {}
         for k, (_, low, high, _) in self.PARAMS.items():
@@ -95,11 +103,11 @@ class ValveModel:
         return out
 
     @property
-    def params(self):
+    def params(self) -> dict[str, Any]:
         """Return a copy of the current parameter values."""
         return dict(self._params)
 
-    def set_params(self, **changes):
+    def set_params(self, **changes: Any) -> None:
         """Change parameters, all or none; they apply from the next sample on."""
         unknown = set(changes) - set(self.PARAMS)
         if unknown:
@@ -109,21 +117,21 @@ class ValveModel:
         self._params = self._validate(merged)
         self._on_params_changed()
 
-    def _on_params_changed(self):
+    def _on_params_changed(self) -> None:
         """Recompute derived constants; the dynamic state is kept."""
 
-    def __getattr__(self, key):
+    def __getattr__(self, key: str) -> Any:
         params = self.__dict__.get('_params')
         if params is not None and key in params:
             return params[key]
         raise AttributeError(f'{type(self).__name__!s} has no attribute {key!r}')
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         args = ', '.join(f'{k}={v!r}' for k, v in self._params.items())
         return f'{type(self).__name__}({args})'
 
     # -- simulation --------------------------------------------------------
-    def reset(self, y0=None):
+    def reset(self, y0: float | None = None) -> None:
         """
         Forget the history; the next sample starts the valve at rest.
 
@@ -134,7 +142,7 @@ class ValveModel:
         self._y0 = None if y0 is None else check_finite('y0', y0, 0.0, 100.0)
         self.state = None
 
-    def step(self, u):
+    def step(self, u: float) -> float:
         """Advance one sample with input ``u`` and return the new position."""
         x = check_finite('valve input', u)
         if self.state is None:
@@ -143,11 +151,11 @@ class ValveModel:
         self._run(np.array([x]), y, self.state)
         return float(y[0])
 
-    def simulate(self, u, y0=None):
+    def simulate(self, u: ArrayLike, y0: float | None = None) -> Floats:
         """Reset, run the whole input array and return positions of the same length."""
         return self._simulate(u, y0, self._run)
 
-    def simulate_reference(self, u, y0=None):
+    def simulate_reference(self, u: ArrayLike, y0: float | None = None) -> Floats:
         """
         Return :meth:`simulate` computed by the model's pure-Python kernel.
 
@@ -156,7 +164,7 @@ class ValveModel:
         """
         return self._simulate(u, y0, self._run_reference)
 
-    def _simulate(self, u, y0, run):
+    def _simulate(self, u: ArrayLike, y0: float | None, run: Kernel) -> Floats:
         a = as_signal(u, 'valve input')
         self.reset(y0)
         y = np.empty_like(a)
@@ -165,12 +173,12 @@ class ValveModel:
             run(a, y, self.state)
         return y
 
-    def snapshot(self):
+    def snapshot(self) -> dict[str, Any]:
         """Return the dynamic state as plain JSON-able data (see :meth:`restore`)."""
         return {'model': self.name, 'state': None if self.state is None else
                 [float(x) for x in self.state]}
 
-    def restore(self, snap):
+    def restore(self, snap: object) -> None:
         """
         Continue from a :meth:`snapshot`: position, stuck or moving, direction, stored force.
 
@@ -195,22 +203,22 @@ class ValveModel:
         self.state = arr
 
     @property
-    def position(self):
+    def position(self) -> float | None:
         """Return the current position, or None before the first sample."""
         return None if self.state is None else float(self.state[0])
 
-    def _new_state(self, u0):
+    def _new_state(self, u0: float) -> Floats:
         return np.array(self._initial_state(u0, self._y0), dtype=np.float64)
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float] | Floats:
         """Return the state (position first) of a valve at rest before input ``u0``."""
         raise NotImplementedError
 
-    def _run(self, u, y, state):
+    def _run(self, u: Floats, y: Floats, state: Floats) -> None:
         """Advance over the array ``u``, writing ``y`` and updating ``state`` in place."""
         raise NotImplementedError
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs | None:
         """
         Return this valve's arguments for the compiled offline loop, or None.
 
@@ -219,6 +227,6 @@ class ValveModel:
         """
         return None
 
-    def _run_reference(self, u, y, state):
+    def _run_reference(self, u: Floats, y: Floats, state: Floats) -> None:
         # Models with a compiled _run override this with their pure-Python kernel.
         self._run(u, y, state)

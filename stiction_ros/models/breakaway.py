@@ -11,7 +11,7 @@ once ``d rel > J``, and from the neutral state once ``|rel| > (S + J)/2``.
 import math
 
 
-def breakaway(d, rel, S, J):
+def breakaway(d: float, rel: float, S: float, J: float) -> float:
     """Return the new direction of motion, or 0.0 if the valve stays stuck."""
     if d == 0.0:
         return math.copysign(1.0, rel) if abs(rel) > 0.5 * (S + J) else 0.0

@@ -16,13 +16,14 @@ then turns back must still overcome S.
 
 import math
 
-from stiction_ros.models.base import ValveModel
-from stiction_ros.models.breakaway import breakaway
-from stiction_ros.models.characteristics import (
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.characteristics import (
     apply_characteristic, characteristic_code, CHARACTERISTICS, invert_characteristic,
     ma_to_percent, percent_to_ma, UNITS)
-from stiction_ros.models.compiled import choudhury_run
-from stiction_ros.models.loop_kinds import CHOUDHURY, loop_args
+from stiction_ros.kernels.loop_kinds import CHOUDHURY, loop_args, LoopArgs
+from stiction_ros.kernels.valves import choudhury_run
+from stiction_ros.models.base import ValveModel
+from stiction_ros.models.breakaway import breakaway
 
 # state layout: output, stem position, filtered input x (k-1), sign of the
 # previous slope, stick point x_ss, stuck flag, last direction of motion
@@ -44,15 +45,15 @@ class Choudhury(ValveModel):
         'rangeability': (50.0, 1.5, 1000.0, 'rangeability R of the equal-percentage curve'),
     }
 
-    def _on_params_changed(self):
+    def _on_params_changed(self) -> None:
         self._char = characteristic_code(self._params['characteristic'])
         self._ma_in = self._params['input_units'] == 'mA'
         self._ma_out = self._params['output_units'] == 'mA'
 
-    def _to_percent(self, u):
+    def _to_percent(self, u: float) -> float:
         return ma_to_percent(u) if self._ma_in else u
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         x0 = self._to_percent(u0)
         if y0 is None:
             pos = min(max(x0, 0.0), 100.0)
@@ -63,22 +64,22 @@ class Choudhury(ValveModel):
         st[_Y] = self._output(pos)
         return st
 
-    def _output(self, pos):
+    def _output(self, pos: float) -> float:
         flow = apply_characteristic(self._char, pos, self._params['rangeability'])
         return percent_to_ma(flow) if self._ma_out else flow
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         p = self._params
         choudhury_run(u, y, st, p['S'], p['J'], p['lam'], self._ma_in, self._char,
                       p['rangeability'], self._ma_out)
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         p = self._params
         return loop_args(CHOUDHURY, (p['S'], p['J'], p['lam'], float(self._ma_in), self._char,
                                      p['rangeability'], float(self._ma_out)))
 
-    def _run_reference(self, u, y, st):
+    def _run_reference(self, u: Floats, y: Floats, st: Floats) -> None:
         p = self._params
         lam = p['lam']
         for k in range(len(u)):
@@ -89,7 +90,7 @@ class Choudhury(ValveModel):
             y[k] = st[_Y]
 
 
-def choudhury_logic(x, st, S, J):
+def choudhury_logic(x: float, st: Floats, S: float, J: float) -> None:
     """Advance the stick-slip logic one sample for filtered input ``x`` (%)."""
     fd = 0.5 * (S - J)
     dx = x - st[_XPREV]

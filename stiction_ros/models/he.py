@@ -10,9 +10,10 @@ so that S and J mean what they mean in Kano's and Choudhury's models.
 
 import math
 
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import HE, loop_args, LoopArgs
+from stiction_ros.kernels.valves import he_run
 from stiction_ros.models.base import ValveModel
-from stiction_ros.models.compiled import he_run
-from stiction_ros.models.loop_kinds import HE, loop_args
 
 _Y, _UPREV, _UR = range(3)
 
@@ -26,22 +27,22 @@ class He(ValveModel):
         'J': (0.0, 0.0, 100.0, 'slip jump, % of output span'),
     }
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         uc = min(max(u0, 0.0), 100.0)
         return [uc if y0 is None else y0, uc, 0.0]
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         he_run(u, y, st, self._params['S'], self._params['J'])
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         return loop_args(HE, (self._params['S'], self._params['J']))
 
-    def _run_reference(self, u, y, st):
+    def _run_reference(self, u: Floats, y: Floats, st: Floats) -> None:
         he_kernel(u, y, st, self._params['S'], self._params['J'])
 
 
-def he_kernel(u, y, st, S, J):
+def he_kernel(u: Floats, y: Floats, st: Floats, S: float, J: float) -> None:
     """Advance He's model over ``u``, writing ``y`` and updating ``st``."""
     fs = 0.5 * (S + J)
     fd = 0.5 * (S - J)

@@ -8,11 +8,12 @@ kinetic band ``fd = (S - J) / 2``.  An optional first-order air-chamber lag
 the friction logic, as Kano proposed for noisy controller outputs.
 """
 
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import KANO, loop_args, LoopArgs
+from stiction_ros.kernels.valves import kano_run
 from stiction_ros.models.base import ValveModel
 from stiction_ros.models.breakaway import breakaway
-from stiction_ros.models.compiled import kano_run
 from stiction_ros.models.lags import first_order_pole
-from stiction_ros.models.loop_kinds import KANO, loop_args
 
 # state layout: position, u(k-1), u(k-2), u_s, resting flag, direction,
 # air-chamber output.  Direction 0 means "at rest with no friction force
@@ -31,26 +32,26 @@ class Kano(ValveModel):
         'sample_time': (1.0, 1e-6, 1e6, 'sample time for the lag, s'),
     }
 
-    def _on_params_changed(self):
+    def _on_params_changed(self) -> None:
         self._a = first_order_pole(self._params['tau'], self._params['sample_time'])
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         uc = min(max(u0, 0.0), 100.0)
         y = uc if y0 is None else y0
         return [y, uc, uc, uc, 1.0, 0.0, u0]
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         kano_run(u, y, st, self._params['S'], self._params['J'], self._a)
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         return loop_args(KANO, (self._params['S'], self._params['J'], self._a))
 
-    def _run_reference(self, u, y, st):
+    def _run_reference(self, u: Floats, y: Floats, st: Floats) -> None:
         kano_kernel(u, y, st, self._params['S'], self._params['J'], self._a)
 
 
-def kano_kernel(u, y, st, S, J, a):
+def kano_kernel(u: Floats, y: Floats, st: Floats, S: float, J: float, a: float) -> None:
     """Advance Kano's model over ``u``, writing ``y`` and updating ``st`` in place."""
     fd = 0.5 * (S - J)
     for k in range(len(u)):

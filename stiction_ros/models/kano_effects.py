@@ -1,5 +1,5 @@
 """
-Kano's model with one of the concealed physical effects of docs EFFECTS.md.
+Kano's model with one of the concealed physical effects of docs/EFFECTS.md.
 
 The simulator's valve for the model-mismatch benchmark and demo: the same
 compiled step the analyzer fits (``stiction_ros.analysis.mismatch``), so
@@ -11,9 +11,10 @@ import math
 
 import numpy as np
 
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.kernels import kano_effects as kk
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import KANO_EFFECTS, loop_args, LoopArgs
 from stiction_ros.models.base import ValveModel
-from stiction_ros.models.loop_kinds import KANO_EFFECTS, loop_args
 
 EFFECTS = ('none', 'asymmetric_friction', 'dwell_time_breakaway', 'actuator_lag',
            'measurement_lag', 'position_dependent_friction', 'friction_drift',
@@ -41,7 +42,7 @@ class KanoEffects(ValveModel):
         'sample_time': (1.0, 1e-6, 1e6, 'sample time, s'),
     }
 
-    def _on_params_changed(self):
+    def _on_params_changed(self) -> None:
         q = self._params
         p = kk.plain_params()
         ts = q['sample_time']
@@ -67,15 +68,15 @@ class KanoEffects(ValveModel):
             p[kk.CREEP] = q['creep']
         self._p = p
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         uc = min(max(u0, 0.0), 100.0)
         y = uc if y0 is None else y0
         return [y, uc, uc, uc, 1.0, 0.0, y, u0, 0.0, y, 0.0]
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         return loop_args(KANO_EFFECTS, (self._params['S'], self._params['J']), self._p)
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         kk.kano_effects_run(np.ascontiguousarray(u), y, st, self._params['S'],
                             self._params['J'], self._p)

@@ -3,7 +3,7 @@
 import math
 
 
-def first_order_pole(tau, sample_time):
+def first_order_pole(tau: float, sample_time: float) -> float:
     """
     Return the exact zero-order-hold pole ``exp(-Ts/tau)`` of ``1/(tau s + 1)``.
 

@@ -1,7 +1,8 @@
 """The ideal valve: position equals input, within travel."""
 
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import LINEAR, loop_args, LoopArgs
 from stiction_ros.models.base import ValveModel
-from stiction_ros.models.loop_kinds import LINEAR, loop_args
 
 
 class Linear(ValveModel):
@@ -10,14 +11,14 @@ class Linear(ValveModel):
     name = 'linear'
     PARAMS = {}
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         return [min(max(u0, 0.0), 100.0)]
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         return loop_args(LINEAR)
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         for k in range(len(u)):
             uk = u[k]
             st[0] = 0.0 if uk < 0.0 else 100.0 if uk > 100.0 else uk

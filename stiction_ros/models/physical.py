@@ -41,7 +41,7 @@ form that ``simulate`` runs is ``physical_exact.py`` (0.03 µs per 1 ms sample);
 ``_run_exact`` below is its pure-Python reference.
 ``'substep'`` takes semi-implicit steps of length ``substep`` (viscous friction
 implicit, ``physical_substep.py``); it is the reference for ``'exact'`` and the
-only integrator for the frictions of docs EFFECTS.md that the exact
+only integrator for the frictions of docs/EFFECTS.md that the exact
 propagators cannot carry: the Stribeck term (non-linear sliding dynamics), a
 static friction that grows with rest time (``dFs``, ``gamma``) and friction
 that differs by direction (``asym``).  With any of them on, the ``'exact'``
@@ -49,18 +49,20 @@ setting falls back to ``'substep'`` internally.
 """
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.linalg import expm
 
-from stiction_ros.models.base import ModelError, ValveModel
-from stiction_ros.models.loop_kinds import loop_args, PHYSICAL_EXACT, PHYSICAL_SUBSTEP
-from stiction_ros.models.physical_exact import run_exact
-from stiction_ros.models.physical_layout import (
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import loop_args, LoopArgs, PHYSICAL_EXACT, PHYSICAL_SUBSTEP
+from stiction_ros.kernels.physical_exact import run_exact
+from stiction_ros.kernels.physical_layout import (
     _A, _ASYM, _DFS, _DP, _DT, _EP, _F0, _FC, _FOH, _FS, _FV, _GAMMA, _K, _M, _NCONST, _NSUB,
     _PMIN, _STRIB, _TAU, _TS, _VS, _VSTICK, _XMAX, S_DIR, S_P, S_STUCK, S_UPREV, S_X, S_Y,
     STATE_SIZE)
-from stiction_ros.models.physical_substep import load_state, run_substep, store_state
+from stiction_ros.kernels.physical_substep import load_state, run_substep, store_state
+from stiction_ros.models.base import ModelError, ValveModel
 
 # Finest bisection step when refining an event time, in seconds.
 _T_RESOLUTION = 1e-10
@@ -71,12 +73,12 @@ _MAX_SUBSTEPS = 100_000_000
 _GRID_FRACTION = 0.1
 
 
-def _net_force(c, x, p):
+def _net_force(c: Floats, x: float, p: float) -> float:
     """Return ``A*p - k*x - F0``, the force that friction must balance (N)."""
     return c[_A] * p - c[_K] * x - c[_F0]
 
 
-def _mech_time_scale(M, k, Fv):
+def _mech_time_scale(M: float, k: float, Fv: float) -> float:
     """
     Return the time scale (s) on which a sliding stem's velocity can change sign.
 
@@ -93,7 +95,7 @@ def _mech_time_scale(M, k, Fv):
     return 1.0 / slow
 
 
-def _event(w, d, signwait, c):
+def _event(w: Floats, d: float, signwait: bool, c: Floats) -> bool:
     """Whether state ``w`` of a stem sliding in direction ``d`` is past an event."""
     x = w[0]
     if x > c[_XMAX] or x < 0.0:
@@ -107,7 +109,8 @@ def _event(w, d, signwait, c):
     return d * acc < 0.0
 
 
-def _run_exact(u, y, state, c, phis, hs, q, jmax):
+def _run_exact(u: Floats, y: Floats, state: Floats, c: Floats, phis: Floats, hs: Floats, q: int,
+               jmax: int) -> None:
     """
     Advance ``state`` over inputs ``u`` with exact propagators (the pure-Python reference).
 
@@ -279,7 +282,7 @@ class Physical(ValveModel):
         'substep': (1e-5, 1e-8, 1.0, 'internal step of the substep integrator (s)'),
     }
 
-    def _validate(self, values):
+    def _validate(self, values: dict[str, Any]) -> dict[str, Any]:
         """Check ranges, then the physical cross-checks."""
         out = super()._validate(values)
         n = self.name
@@ -316,7 +319,7 @@ class Physical(ValveModel):
                     f'sqrt(M/k) = {math.sqrt(out["M"] / out["k"]):.3g} s')
         return out
 
-    def _on_params_changed(self):
+    def _on_params_changed(self) -> None:
         """Recompute the constants and the exact propagators; the state is kept."""
         pr = self._params
         c = np.zeros(_NCONST)
@@ -348,7 +351,7 @@ class Physical(ValveModel):
         if self._use_exact:
             self._build_propagators()
 
-    def _build_propagators(self):
+    def _build_propagators(self) -> None:
         """Tabulate ``expm(F*Ts/2**j)`` for the sub-grid level and every bisection level."""
         pr = self._params
         ts = pr['sample_time']
@@ -378,12 +381,12 @@ class Physical(ValveModel):
         self._jmax = jmax
 
     # -- helpers for users and tests --------------------------------------
-    def p_cmd(self, u):
+    def p_cmd(self, u: float) -> float:
         """Commanded actuator pressure (Pa) for input ``u`` (%), clipped to [0, 100]."""
         uc = min(max(float(u), 0.0), 100.0)
         return self._params['p_min'] + uc / 100.0 * (self._params['p_max'] - self._params['p_min'])
 
-    def net_force(self, state=None):
+    def net_force(self, state: Floats | None = None) -> float | None:
         """Return ``A*p - k*x - F0`` (N), the force friction balances, of ``state`` or now."""
         s = self.state if state is None else state
         if s is None:
@@ -391,12 +394,12 @@ class Physical(ValveModel):
         return float(_net_force(self._c, s[S_X], s[S_P]))
 
     @property
-    def stuck(self):
+    def stuck(self) -> bool | None:
         """Whether the stem is at rest (stuck or at a stop); None before the first sample."""
         return None if self.state is None else bool(self.state[S_STUCK] > 0.5)
 
     # -- kernel -------------------------------------------------------------
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> Floats:
         pr = self._params
         pc = self.p_cmd(u0)
         if y0 is None:
@@ -413,20 +416,20 @@ class Physical(ValveModel):
         state[S_UPREV] = min(max(float(u0), 0.0), 100.0)
         return state
 
-    def _run(self, u, y, state):
+    def _run(self, u: Floats, y: Floats, state: Floats) -> None:
         if self._use_exact:
             run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
         else:
             run_substep(u, y, state, self._c)
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         if self._use_exact:
             return loop_args(PHYSICAL_EXACT, (), self._c, self._phis, self._hs, self._q,
                              self._jmax)
         return loop_args(PHYSICAL_SUBSTEP, (), self._c)
 
-    def _run_reference(self, u, y, state):
+    def _run_reference(self, u: Floats, y: Floats, state: Floats) -> None:
         # The exact integrator's pure-Python form; the substep one has only its compiled form.
         if self._use_exact:
             _run_exact(u, y, state, self._c, self._phis, self._hs, self._q, self._jmax)
@@ -434,19 +437,19 @@ class Physical(ValveModel):
             run_substep(u, y, state, self._c)
 
 
-def _needs_substeps(pr):
+def _needs_substeps(pr: dict[str, Any]) -> bool:
     # The exact propagators assume constant friction forces in each direction.
     return (bool(pr['stribeck']) or pr['dFs'] > 0.0 or pr['asym'] != 0.0
             or pr['hold'] == 'foh')
 
 
-def _substep_length(ts, substep):
+def _substep_length(ts: float, substep: float) -> tuple[float, int]:
     """Return ``(dt, n)``: ``n`` equal substeps of length ``dt <= substep`` filling ``ts``."""
     n = max(1, math.ceil(ts / substep - 1e-9))
     return ts / n, n
 
 
-def quasi_static_sj(**params):
+def quasi_static_sj(**params: Any) -> dict[str, float]:
     """
     Return the data-driven equivalent ``dict(S, J, S_rest, D, gain)`` of a physical valve.
 

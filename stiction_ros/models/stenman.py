@@ -7,9 +7,10 @@ chapter prints ``u(k-1)`` in the first branch; a stuck valve holds its previous
 ``S`` here so that every model takes the same parameter name on the ROS side.
 """
 
+from stiction_ros.kernels.arrays import Floats
+from stiction_ros.kernels.loop_kinds import loop_args, LoopArgs, STENMAN
+from stiction_ros.kernels.valves import stenman_run
 from stiction_ros.models.base import ValveModel
-from stiction_ros.models.compiled import stenman_run
-from stiction_ros.models.loop_kinds import loop_args, STENMAN
 
 
 class Stenman(ValveModel):
@@ -20,21 +21,21 @@ class Stenman(ValveModel):
         'S': (0.0, 0.0, 100.0, 'stiction band d of eq. 2.3, % of span'),
     }
 
-    def _initial_state(self, u0, y0):
+    def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         return [min(max(u0, 0.0), 100.0) if y0 is None else y0]
 
-    def _run(self, u, y, st):
+    def _run(self, u: Floats, y: Floats, st: Floats) -> None:
         stenman_run(u, y, st, self._params['S'])
 
-    def loop_args(self):
+    def loop_args(self) -> LoopArgs:
         """Return the compiled loop's arguments for this valve."""
         return loop_args(STENMAN, (self._params['S'],))
 
-    def _run_reference(self, u, y, st):
+    def _run_reference(self, u: Floats, y: Floats, st: Floats) -> None:
         stenman_kernel(u, y, st, self._params['S'])
 
 
-def stenman_kernel(u, y, st, d):
+def stenman_kernel(u: Floats, y: Floats, st: Floats, d: float) -> None:
     """Advance Stenman's model over ``u``, writing ``y`` and updating ``st``."""
     for k in range(len(u)):
         uk = 0.0 if u[k] < 0.0 else 100.0 if u[k] > 100.0 else u[k]

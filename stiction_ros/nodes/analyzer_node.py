@@ -12,16 +12,14 @@ stays up ``linger`` seconds for late subscribers, then exits: 0 when the
 analysis ran, 2 when the input could not be analysed.
 """
 
-import argparse
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from stiction_ros.analysis.detection.model_file import DetectorFileError
-from stiction_ros.analysis.identify import IdentifyError
-from stiction_ros.analysis.record import InputError
+from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
+from stiction_ros.errors import InputError, StictionError
 from stiction_ros.nodes.params import declare, Param
 from stiction_ros.nodes.run import run
 
@@ -95,7 +93,7 @@ class AnalyzerNode(Node):
                                   hardware_id=v['input'])
         try:
             report = self._report()
-        except (InputError, IdentifyError, ValueError, OSError, DetectorFileError) as exc:
+        except (StictionError, ValueError, OSError) as exc:
             self.get_logger().error(f'cannot analyse {v["input"]!r}: {exc}')
             status.level, status.message = DiagnosticStatus.ERROR, f'cannot analyse: {exc}'
             code = 2
@@ -110,17 +108,15 @@ class AnalyzerNode(Node):
         return code
 
     def _report(self):
-        from stiction_ros.cli.analyze import run as analyze_run
         v = self.values
         if not v['input']:
-            raise ValueError('parameter input is empty: give -p input:=PATH')
-        args = argparse.Namespace(
+            raise InputError('parameter input is empty: give -p input:=PATH')
+        # Negative S and J are the parameters' way of saying "identify them".
+        options = AnalyzeOptions(
             input=v['input'], model=v['model'], S=v['S'] if v['S'] >= 0.0 else None,
-            J=v['J'] if v['J'] >= 0.0 else None, fit_filter=False, window=None,
-            namespace=v['topic_namespace'] or None, loop_type=v['loop_type'],
-            no_hammerstein=False, json_path=v['report'] or None,
-            html_path=v['html'] or None)
-        return analyze_run(args, lambda msg: self.get_logger().info(msg))
+            J=v['J'] if v['J'] >= 0.0 else None, namespace=v['topic_namespace'] or None,
+            loop_type=v['loop_type'], json_path=v['report'] or None, html_path=v['html'] or None)
+        return analyze_file(options, self.get_logger().info).report
 
     def _done(self):
         if not self.finished.done():

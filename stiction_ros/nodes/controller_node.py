@@ -18,11 +18,11 @@ Example::
 import sys
 
 from std_msgs.msg import Float64
-from stiction_ros.controller import PID
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
-from stiction_ros.sources import Constant, make_source, SourceError, SOURCES
+from stiction_ros.sim.controller import PID
+from stiction_ros.sim.sources import Constant, make_source, SourceError, SOURCES
 import yaml
 
 PROFILE_RULE = ('empty, a number, or a YAML mapping with type: one of ' + ', '.join(SOURCES)

@@ -14,7 +14,7 @@ from std_msgs.msg import Float64
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
-from stiction_ros.plant import PlantError, TransferFunctionPlant
+from stiction_ros.sim.plant import PlantError, TransferFunctionPlant
 import yaml
 
 # Samples the plant catches up at once after the clock skipped ahead.

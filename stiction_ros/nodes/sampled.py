@@ -53,6 +53,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
+from stiction_ros.errors import StartupError
 from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
 from stiction_ros.nodes.params import check_choices, declare, Param
@@ -62,10 +63,6 @@ SLOTS = 4
 # recorder) must not lose samples, yet the newest value is what a loop uses.
 DATA_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                       reliability=ReliabilityPolicy.RELIABLE)
-
-
-class StartupError(RuntimeError):
-    """The node cannot start with the parameters it was given; the message says why."""
 
 
 class SampledNode(Node):

@@ -24,14 +24,12 @@ from pathlib import Path
 import struct
 import zlib
 
+from stiction_ros.errors import StateFileError
+
 MAGIC = b'STIC'
 # magic, sequence number, body length, CRC of the body
 HEAD = struct.Struct('<4sQII')
 MIN_SLOT = 32 * 1024
-
-
-class StateFileError(ValueError):
-    """The saved state cannot be used; the message says why."""
 
 
 class StateStore:

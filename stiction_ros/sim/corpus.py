@@ -22,9 +22,9 @@ import math
 import numpy as np
 from scipy import signal
 
+from stiction_ros.kernels.corpus import loop_matrix, min_damping, QUANTISED, run_corpus_loop
 from stiction_ros.models import create
-from stiction_ros.plant import TransferFunctionPlant
-from stiction_ros.sim.corpus_kernel import loop_matrix, min_damping, QUANTISED, run_corpus_loop
+from stiction_ros.sim.plant import TransferFunctionPlant
 
 LOOK_ALIKES = ('aggressive_tuning', 'load_cycle', 'integrating_cycle', 'backlash', 'quantised',
                'pv_quantisation', 'sensor_fault')

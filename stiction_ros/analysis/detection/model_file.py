@@ -20,16 +20,14 @@ import zlib
 
 import numpy as np
 
+from stiction_ros.errors import DetectorFileError
+
 FORMAT = 'stiction_ros.detector'
 VERSION = 1
 ARRAYS = {'feature': np.int32, 'threshold': np.float64, 'left': np.int32, 'right': np.int32,
           'value': np.float64, 'missing_left': np.uint8, 'is_leaf': np.uint8,
           'tree_start': np.int32, 'calib_x': np.float64, 'calib_y': np.float64}
 DEFAULT_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_detector.npz'
-
-
-class DetectorFileError(Exception):
-    """The detector's model file is missing, damaged or of another version."""
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """
-The candidate physics of docs EFFECTS.md: parameters, grids and the sentence an engineer reads.
+The candidate physics of docs/EFFECTS.md: parameters, grids and the sentence an engineer reads.
 
 Each effect turns on one or two entries of the kernel's parameter vector;
 at zero it is Kano's plain model.  ``grid`` lists the values the fit tries
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.kernels import kano_effects as kk
 
 
 @dataclass(frozen=True)

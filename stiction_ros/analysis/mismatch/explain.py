@@ -23,11 +23,11 @@ import time
 import numpy as np
 
 from stiction_ros.analysis.identify import identify
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
-from stiction_ros.analysis.mismatch.fit import effect_errors, fit_effect, Problem, RESOLUTION, \
-    start_positions
+from stiction_ros.analysis.mismatch.fit import effect_errors, EffectsProblem, fit_effect, \
+    RESOLUTION, start_positions
+from stiction_ros.kernels import kano_effects as kk
 
 HOLDOUT = 0.3
 BOOTSTRAP = 3
@@ -66,7 +66,7 @@ def prepare(op, mv, fit_segments, sample_time):
                     resolution=RESOLUTION, interval=False)
     starts = [a for a, _ in fit_segments]
     stops = [b for _, b in fit_segments]
-    problem = Problem(op, mv, starts, stops)
+    problem = EffectsProblem(op, mv, starts, stops)
     used = np.concatenate([np.arange(a, b) for a, b in fit_segments])
     ctx = Context(sample_time, int(max(stops)), float(np.mean(mv[used])))
     plain_sse = problem.sse(base.S, base.J, kk.plain_params())

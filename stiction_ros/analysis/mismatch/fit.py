@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
+from stiction_ros.analysis import fit_core
+from stiction_ros.kernels import kano_effects as kk
 
 # Finer than identify's default 0.01 %: on a noisy record a plain fit rounded to
 # 0.01 % moved enough breakaways by a sample to triple its MSE (0.010 -> 0.033),
@@ -67,17 +68,12 @@ def start_positions(y, starts, stops):
                      for a, b in zip(starts, stops)])
 
 
-class Problem:
-    """OP and measured MV over the fitted segments, for the effects kernel."""
+class EffectsProblem(fit_core.Problem):
+    """OP (``u``) and measured MV (``y``) over the fitted segments, for the effects kernel."""
 
     def __init__(self, op, mv, starts, stops):
-        self.u = np.ascontiguousarray(op, dtype=np.float64)
-        self.y = np.ascontiguousarray(mv, dtype=np.float64)
-        self.starts = np.asarray(starts, dtype=np.int64)
-        self.stops = np.asarray(stops, dtype=np.int64)
-        self.n = int(np.sum(self.stops - self.starts))
+        super().__init__(op, mv, starts, stops)
         self.y0s = start_positions(self.y, self.starts, self.stops)
-        self.evaluations = 0
 
     def grid(self, s_values, j_values, p, limit=math.inf, keep=1):
         """Return the SSE grid over (S, J) with effect ``p``, exact for the ``keep`` best."""

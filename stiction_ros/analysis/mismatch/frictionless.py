@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from stiction_ros.analysis.mismatch import instrument as ins
-from stiction_ros.analysis.mismatch.chain_kernel import limited
+from stiction_ros.kernels.chain import limited
 
 
 def _sse(op, mv, segments, idx, v, free):

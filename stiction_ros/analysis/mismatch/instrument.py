@@ -25,9 +25,10 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from stiction_ros.analysis.identify import identify, plausible_box
-from stiction_ros.analysis.mismatch import kano_effects_kernel as kk
-from stiction_ros.analysis.mismatch.chain_kernel import limited
-from stiction_ros.analysis.mismatch.fit import local_sj, Problem, RESOLUTION, start_positions
+from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUTION, \
+    start_positions
+from stiction_ros.kernels import kano_effects as kk
+from stiction_ros.kernels.chain import limited
 
 COMPONENTS = ('delay', 'tau', 'tau2', 'offset', 'gain', 'rate', 'travel')
 # 'rate': the largest change per sample (0: none); 'travel': 1 when the reading is held
@@ -227,7 +228,7 @@ def _lagged_params(tau, before=False):
 
 
 def _stiction_lagged(u, y, segments, p_lag, near, box, polish=True):
-    problem = Problem(u, y, [a for a, _ in segments], [b for _, b in segments])
+    problem = EffectsProblem(u, y, [a for a, _ in segments], [b for _, b in segments])
     s0, j0 = near if near is not None else (0.5 * box[0], 0.25 * box[0])
     half = max(s0, 1.0)
     _, S, J = local_sj(problem, p_lag, s0, j0, half, half, points=13,
@@ -236,7 +237,7 @@ def _stiction_lagged(u, y, segments, p_lag, near, box, polish=True):
 
 
 def _backlash_s(u, y, segments, s_max, p):
-    problem = Problem(u, y, [a for a, _ in segments], [b for _, b in segments])
+    problem = EffectsProblem(u, y, [a for a, _ in segments], [b for _, b in segments])
     j = np.zeros(1)
     s_axis = np.linspace(0.0, max(s_max, 0.1), 41)
     scores = problem.grid(s_axis, j, p)[:, 0]

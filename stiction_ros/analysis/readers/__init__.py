@@ -40,7 +40,9 @@ def detect_format(path):
     return 'csv'
 
 
-def load_record(path, namespace=None, window=None, min_valid=MIN_VALID):
+def load_record(path: str | Path, namespace: str | None = None,
+                window: tuple[float | None, float | None] | None = None,
+                min_valid: int = MIN_VALID) -> Record:
     """
     Return the :class:`Record` of a recording, restricted to ``window`` if given.
 

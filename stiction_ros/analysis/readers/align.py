@@ -12,16 +12,14 @@ last wins.  A bin without a value stays NaN, never interpolated.
 
 import numpy as np
 
+from stiction_ros.errors import GridError
+
 # The fitted period is replaced by the shortest decimal (1.0, not 0.99998)
 # that the fit cannot tell from it, or that moves no stamp by more than this
 # fraction of a sample over the record.
 SNAP = 0.05
 # Stamps further than this fraction of a sample from the grid get a warning.
 STRAY = 0.3
-
-
-class GridError(ValueError):
-    """The stamps do not define a sample grid (fewer than two distinct stamps)."""
 
 
 def sample_period(t):

@@ -1,0 +1,257 @@
+"""
+Analyse one recording as ``stiction-analyze`` does, without the command line.
+
+    from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
+    analysis = analyze_file(AnalyzeOptions('loop.csv', explain=True, json_path='r.json'))
+    analysis.report['stiction']['detected']
+
+:class:`AnalyzeOptions` holds every option of ``stiction-analyze`` for one
+recording, checked when it is made: a bad value raises
+:class:`~stiction_ros.errors.InputError` naming the option and the fix, before
+any file is read.  The command line, the batch workers (stiction_ros.app.batch)
+and the analyzer node all go through :func:`analyze_file`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+import numbers
+import os
+import time
+from typing import Callable, TYPE_CHECKING
+
+from stiction_ros.app.report_files import write_html, write_json
+from stiction_ros.errors import InputError
+
+if TYPE_CHECKING:  # pragma: no cover - for the annotations only
+    from stiction_ros.analysis.pipeline import Analysis
+
+# The same choices as stiction_ros.analysis.pipeline.Options; repeated here so that
+# making and checking options does not load the analysis (about a second).
+MODEL_CHOICES = ('kano', 'choudhury', 'both')
+LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
+# explain_record's limit: at least a tenth of the record must stay for the fits.
+HOLDOUT_MAX = 0.9
+
+Say = Callable[[str], None]
+
+
+def print_nothing(msg: str) -> None:
+    """Drop a progress line (the default ``say`` of the app functions)."""
+
+
+def default_jobs() -> int:
+    """Return the number of cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _path_or_none(value, name):
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)):
+        raise InputError(f'{name} must be a path (str or Path), got {value!r}')
+    return os.fspath(value)
+
+
+def _whole(value, name, least, fix):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+        raise InputError(f'{name} must be a whole number, {least} or more, got {value!r}: {fix}')
+    return int(value)
+
+
+@dataclass(frozen=True)
+class AnalyzeOptions:
+    """
+    Every option of ``stiction-analyze`` for one recording; checked on creation.
+
+    Attributes
+    ----------
+    input : str
+        Bag directory, .mcap file, CSV or historian export (a ``Path`` is accepted).
+    model : str
+        Model(s) to fit when MV is present: ``'kano'``, ``'choudhury'`` or ``'both'``.
+    S, J : float or None
+        Given stiction band and slip jump (% of span); both or neither (then identified).
+    fit_filter : bool
+        Also identify Kano's air-chamber lag or Choudhury's EWMA weight.
+    window : (float, float) or None
+        Analyse only ``T0 <= t <= T1``, seconds from the start of the record.
+    namespace : str or None
+        Namespace of the loop topics in a bag, e.g. ``'/loop1'``.
+    loop_type : str
+        ``'auto'``, ``'self-regulating'`` or ``'integrating'``.
+    detector : str or None
+        Learned detector model file; None for the shipped one.
+    hammerstein : bool
+        Quantify S and J from OP and PV (``--no-hammerstein`` sets it False).
+    explain : bool
+        Locate and name what the plain Kano model misses (needs MV).
+    holdout : float
+        Share of samples at the end kept out of every ``explain`` fit, in [0, 0.9).
+    bootstrap : int
+        Effect-free replicates that calibrate the ``explain`` choice, 0 or more.
+    jobs : int or None
+        Threads of ``explain`` (worker processes for many recordings); None: every core.
+    json_path, html_path : str or None
+        Where to write the JSON report and the HTML page; None: not written.
+
+    """
+
+    # Named as the command's INPUT and the report's "input"; a field never hides the builtin.
+    input: str  # noqa: A003
+    model: str = 'both'
+    S: float | None = None
+    J: float | None = None
+    fit_filter: bool = False
+    window: tuple[float, float] | None = None
+    namespace: str | None = None
+    loop_type: str = 'auto'
+    detector: str | None = None
+    hammerstein: bool = True
+    explain: bool = False
+    holdout: float = 0.3
+    bootstrap: int = 3
+    jobs: int | None = None
+    json_path: str | None = None
+    html_path: str | None = None
+
+    def __post_init__(self) -> None:
+        # Frozen: the normalised values are set through object.__setattr__.
+        def put(name, value):
+            object.__setattr__(self, name, value)
+        put('input', _path_or_none(self.input, 'input'))
+        if not self.input:
+            raise InputError('input is empty: name a bag directory, .mcap file, CSV or '
+                             'historian export')
+        for name in ('detector', 'json_path', 'html_path'):
+            put(name, _path_or_none(getattr(self, name), name))
+        # The texts of stiction_ros.analysis.pipeline.Options, which checks these too.
+        if self.model not in MODEL_CHOICES:
+            raise InputError(f'model must be one of {MODEL_CHOICES}, got {self.model!r}')
+        if self.loop_type not in LOOP_TYPES:
+            raise InputError(f'loop type must be one of {LOOP_TYPES}, got {self.loop_type!r}')
+        if (self.S is None) != (self.J is None):
+            raise InputError('give both S and J, or neither (then they are identified)')
+        for name in ('S', 'J'):
+            v = getattr(self, name)
+            if v is not None:
+                put(name, self._number(name, v))
+                if not 0.0 <= getattr(self, name) <= 100.0:
+                    raise InputError(f'{name} = {v} is outside [0, 100] % of span')
+        self._check_window(put)
+        holdout = self._number('holdout', self.holdout)
+        if not 0.0 <= holdout < HOLDOUT_MAX:
+            raise InputError(f'holdout (--holdout) must be in [0, {HOLDOUT_MAX:g}), got '
+                             f'{self.holdout}: it is the share of samples at the end kept out '
+                             'of every fit (default 0.3)')
+        put('holdout', holdout)
+        put('bootstrap', _whole(
+            self.bootstrap, 'bootstrap (--bootstrap)', 0,
+            'the effect-free replicates that calibrate --explain (default 3; 0 for none)'))
+        if self.jobs is not None:
+            put('jobs', _whole(self.jobs, 'jobs (--jobs)', 1,
+                               'worker processes, or threads of --explain for one recording; '
+                               'leave it out for every core'))
+
+    @staticmethod
+    def _number(name, v):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise InputError(f'{name} must be a number, got {v!r}')
+        return float(v)
+
+    def _check_window(self, put):
+        if self.window is None:
+            return
+        try:
+            t0, t1 = self.window
+        except (TypeError, ValueError):
+            raise InputError(f'window (--window T0 T1) must be two times in seconds, got '
+                             f'{self.window!r}') from None
+        t0, t1 = self._number('window start', t0), self._number('window end', t1)
+        if not (math.isfinite(t0) and math.isfinite(t1)):
+            raise InputError(f'window (--window T0 T1) must be finite seconds from the start '
+                             f'of the record, got {t0:g} to {t1:g}')
+        put('window', (t0, t1))
+
+
+def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
+    """
+    Analyse the recording ``options.input``; write the reports ``options`` asks for.
+
+    Parameters
+    ----------
+    options : AnalyzeOptions
+        What to analyse and how; ``json_path`` and ``html_path`` say what to write.
+    say : callable
+        Receives each progress line (``stiction-analyze`` prints them on stderr).
+
+    Returns
+    -------
+    Analysis
+        The report dict (``.report``, with ``elapsed_s``) and the arrays behind the figures.
+
+    Raises
+    ------
+    StictionError
+        The input cannot be analysed (InputError, IdentifyError, ...) or the
+        detector's model file is unusable (DetectorFileError); the message says why.
+    OSError
+        A report cannot be written.
+
+    """
+    # Imported here: the analysis takes about a second to load, not needed to check options.
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.readers import load_record
+    t0 = time.perf_counter()
+    pipeline_options = Options(model=options.model, S=options.S, J=options.J,
+                               fit_filter=options.fit_filter, loop_type=options.loop_type,
+                               hammerstein=options.hammerstein, detector=options.detector)
+    say(f'reading {options.input}')
+    record = load_record(options.input, namespace=options.namespace, window=options.window)
+    say(f'{record.samples} samples at {record.sample_time:g} s, signals '
+        f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
+    analysis = analyze(record, pipeline_options,
+                       progress=lambda level, n: say(f'  search level {level}: {n} evaluations'))
+    report = analysis.report
+    if options.explain:
+        run_explain(analysis, options, say)
+    report['elapsed_s'] = round(time.perf_counter() - t0, 3)
+    if options.json_path:
+        write_json(options.json_path, report)
+        say(f'wrote {options.json_path}')
+    if options.html_path:
+        write_html(analysis, options.html_path, say)
+    return analysis
+
+
+def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_nothing) -> None:
+    """
+    Add the ``--explain`` sections to ``analysis.report`` and their arrays to ``analysis``.
+
+    Without MV the report gets a ``mismatch`` section that says why nothing can
+    be explained; the rest of the report stands.
+    """
+    rec = analysis.record
+    if not rec.has('mv'):
+        # Not an input error: the rest of the report stands, and says why this part cannot.
+        analysis.report['mismatch'] = {
+            'effect': 'cannot_tell', 'effects': [], 'friction': None, 'reason': 'no_mv',
+            'explanation': (
+                'Cannot explain a mismatch without the valve position (MV): with OP and PV '
+                'alone, dead time, lag and calibration of the valve cannot be told from the '
+                "plant's own dynamics, so no effect can be located or named. Record the "
+                'positioner feedback (or a flow right after the valve) and run --explain '
+                'again; the stiction verdict above is what OP and PV can say.')}
+        return
+    from stiction_ros.analysis.mismatch.decide import explain_record
+    jobs = options.jobs if options.jobs is not None else default_jobs()
+    sections, arrays = explain_record(rec.t, rec.signals['op'], rec.signals['mv'],
+                                      rec.valve_segments(min_samples=2), rec.sample_time,
+                                      holdout=options.holdout, reps=options.bootstrap,
+                                      progress=say, jobs=jobs)
+    analysis.report.update(sections)
+    analysis.explain_arrays = arrays

@@ -1,0 +1,235 @@
+"""
+Many recordings at once: ``stiction-analyze DIR`` or ``stiction-analyze 'plant/*.csv'``.
+
+A plant-wide audit has thousands of recordings, each analysed on its own, so
+the work fans out over local processes (``jobs``) or over a Dask cluster
+(``scheduler``); both run :func:`analyze_one`, the same code, on a copy of
+the one :class:`~stiction_ros.app.analyze.AnalyzeOptions` (it pickles).  A
+recording that fails is one row with its error, never the end of the audit.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import as_completed, ProcessPoolExecutor
+from dataclasses import dataclass, replace
+import glob
+from pathlib import Path
+import re
+import sys
+import time
+
+from stiction_ros.app.analyze import (
+    analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
+from stiction_ros.app.report_files import write_json
+from stiction_ros.app.report_text import summary_line, VERDICT_WORDS
+from stiction_ros.errors import InputError, StictionError
+
+RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap')
+
+
+def _is_bag(path):
+    return path.is_dir() and ((path / 'metadata.yaml').is_file() or any(path.glob('*.mcap')))
+
+
+def _walk(folder):
+    # Bags are directories too: a bag is one recording, any other folder is searched.
+    found = []
+    for p in sorted(folder.iterdir()):
+        if p.name.startswith('.'):
+            continue
+        if _is_bag(p):
+            found.append(p)
+        elif p.is_dir():
+            found += _walk(p)
+        elif p.suffix.lower() in RECORDING_SUFFIXES:
+            found.append(p)
+    return found
+
+
+def expand(source):
+    """
+    Return the recordings ``source`` names when it names several, else None.
+
+    A glob (``*``, ``?``, ``[``) names what it matches; a directory that is not
+    a bag names every bag, CSV, historian export (.txt/.tsv) and .mcap below it.
+    """
+    if any(c in source for c in '*?['):
+        paths = sorted(glob.glob(source, recursive=True))
+        if not paths:
+            raise InputError(f'{source}: no file matches')
+        return paths
+    path = Path(source)
+    if path.is_dir() and not _is_bag(path):
+        found = _walk(path)
+        if not found:
+            raise InputError(f'{path}: no recordings here (no bag, .csv, .txt, .tsv or .mcap '
+                             'below it)')
+        return [str(p) for p in found]
+    return None
+
+
+def report_name(path, root):
+    """Return a file name for the report of ``path``, unique within ``root``."""
+    try:
+        rel = Path(path).resolve().relative_to(Path(root).resolve())
+    except ValueError:
+        rel = Path(path)
+    return re.sub(r'[^A-Za-z0-9._-]+', '_', str(rel).strip('/')) + '.json'
+
+
+def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path | None = None,
+                root: str | Path = '.') -> dict:
+    """
+    Analyse one recording with ``options`` (its ``input`` replaced by ``path``).
+
+    Runs in a worker process or on a Dask worker, so it returns plain data and
+    never raises for a bad recording.
+
+    Returns
+    -------
+    dict
+        The summary row: ``input``, ``ok``, then ``detected``, ``score``,
+        ``fits``, ``summary`` (and ``effect``, ``report``) or ``error``; ``seconds``.
+
+    """
+    t0 = time.perf_counter()
+    row = {'input': str(path), 'ok': False}
+    try:
+        # Each worker is one process already: its --explain runs on one thread.
+        one = replace(options, input=str(path), json_path=None, html_path=None, jobs=1)
+        report = analyze_file(one).report
+    except (StictionError, OSError) as exc:
+        row['error'] = str(exc)
+    else:
+        st = report['stiction']
+        row.update(ok=True, detected=st['detected'], score=st['score'],
+                   fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
+                   summary=summary_line(report))
+        if 'mismatch' in report:
+            row['effect'] = report['mismatch']['effect']
+        if out_dir is not None:
+            target = Path(out_dir) / report_name(path, root)
+            write_json(target, report)
+            row['report'] = str(target)
+    row['seconds'] = round(time.perf_counter() - t0, 3)
+    return row
+
+
+def _results(paths, options, jobs, scheduler, out_dir, root):
+    # Yields rows as they finish, whichever way the work is spread.
+    if scheduler:
+        from distributed import as_completed as dask_completed, Client
+        with Client(scheduler) as client:
+            futures = client.map(analyze_one, paths, options=options, out_dir=out_dir,
+                                 root=root, pure=False)
+            for future in dask_completed(futures):
+                yield future.result()
+    elif jobs > 1 and len(paths) > 1:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(paths))) as pool:
+            futures = [pool.submit(analyze_one, p, options, out_dir, root) for p in paths]
+            for future in as_completed(futures):
+                yield future.result()
+    else:
+        for p in paths:
+            yield analyze_one(p, options, out_dir, root)
+
+
+def progress_line(done: int, total: int, elapsed: float, row: dict) -> str:
+    """Return the progress bar after ``done`` of ``total`` recordings."""
+    width = 24
+    filled = int(width * done / total)
+    rate = done / elapsed if elapsed > 0 else 0.0
+    eta = (total - done) / rate if rate > 0 else 0.0
+    verdict = VERDICT_WORDS[row['detected']] if row['ok'] else 'error'
+    return (f'[{"#" * filled}{"." * (width - filled)}] {done}/{total} {rate:.2f}/s '
+            f'ETA {eta:.0f} s  {Path(row["input"]).name}: {verdict}')
+
+
+def run_batch(paths: list[str], options: AnalyzeOptions, jobs: int = 1,
+              scheduler: str | None = None, out_dir: str | Path | None = None,
+              root: str | Path = '.', say: Say | None = None) -> tuple[list[dict], float]:
+    """
+    Analyse every path with ``options``; return (rows in the order of ``paths``, seconds).
+
+    ``say`` receives a progress line per finished recording (on a terminal the
+    bar is redrawn on stderr instead); None: no progress at all.
+    """
+    t0 = time.perf_counter()
+    rows = {}
+    tty = sys.stderr.isatty()
+    for row in _results(paths, options, jobs, scheduler, out_dir, root):
+        rows[row['input']] = row
+        if say is not None:
+            line = progress_line(len(rows), len(paths), time.perf_counter() - t0, row)
+            if tty:
+                print('\r' + line, end='' if len(rows) < len(paths) else '\n',
+                      file=sys.stderr, flush=True)
+            else:
+                say(line)
+    return [rows[str(p)] for p in paths], time.perf_counter() - t0
+
+
+@dataclass
+class Batch:
+    """The rows of a batch run and what its summary says about them."""
+
+    source: str
+    rows: list[dict]
+    seconds: float
+    workers: str
+
+    @property
+    def failed(self) -> int:
+        """Return the number of recordings that could not be analysed."""
+        return sum(not r['ok'] for r in self.rows)
+
+    def tally(self) -> dict[str, int]:
+        """Return {verdict word: recordings} over the recordings analysed."""
+        tally: dict[str, int] = {}
+        for r in self.rows:
+            if r['ok']:
+                word = VERDICT_WORDS[r['detected']]
+                tally[word] = tally.get(word, 0) + 1
+        return tally
+
+    def summary(self) -> dict:
+        """Return the batch report (``--json``): counts, time, workers and every row."""
+        return {'input': self.source, 'recordings': len(self.rows), 'failed': self.failed,
+                'seconds': round(self.seconds, 3), 'workers': self.workers, 'rows': self.rows}
+
+
+def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | None = None,
+                 out_dir: str | Path | None = None, say: Say | None = None) -> Batch:
+    """
+    Analyse every recording in ``paths`` on its own with ``options``.
+
+    Parameters
+    ----------
+    options : AnalyzeOptions
+        The options of each recording; ``input`` is the folder or glob that
+        :func:`expand` turned into ``paths``, ``jobs`` the worker processes
+        (None: every core) and ``json_path`` is left to the caller.
+    paths : list of str
+        The recordings.
+    scheduler : str, optional
+        Address of a Dask scheduler (``tcp://host:8786``) to run on instead of
+        local processes.
+    out_dir : str or Path, optional
+        Where to write a JSON report per recording.
+    say : callable, optional
+        Receives the start line and a progress line per recording.
+
+    Returns
+    -------
+    Batch
+        The rows in the order of ``paths``, the seconds and the workers used.
+
+    """
+    if options.html_path:
+        raise InputError('--html takes one recording; for many use --out-dir (JSON reports)')
+    jobs = options.jobs if options.jobs is not None else default_jobs()
+    where = f'Dask cluster {scheduler}' if scheduler else f'{jobs} process(es)'
+    (say or print_nothing)(f'{len(paths)} recordings from {options.input} on {where}')
+    root = options.input if Path(options.input).is_dir() else '.'
+    rows, seconds = run_batch(paths, options, jobs, scheduler, out_dir, root, say)
+    return Batch(options.input, rows, seconds, where)

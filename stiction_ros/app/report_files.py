@@ -1,0 +1,76 @@
+"""
+The analyzer's report as files: the JSON report, the HTML page and its PNG figures.
+
+The figures are drawn with matplotlib's object-oriented API (stiction_ros.viz),
+so writing a report chooses no matplotlib backend for the caller.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, TYPE_CHECKING
+
+from stiction_ros.app.report_text import to_json_text
+
+if TYPE_CHECKING:  # pragma: no cover - for the annotations only
+    from stiction_ros.analysis.pipeline import Analysis
+
+
+def write_text(path: str | Path, text: str) -> None:
+    """Write ``text`` and a final newline to ``path`` (UTF-8), creating its folder."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text + '\n', encoding='utf-8')
+
+
+def write_json(path: str | Path, report: dict) -> None:
+    """Write ``report`` as the indented JSON of :func:`to_json_text` to ``path``."""
+    write_text(path, to_json_text(report))
+
+
+def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None]) -> Path:
+    """
+    Write the figures beside ``path`` and the HTML page embedding them.
+
+    Parameters
+    ----------
+    analysis : Analysis
+        What :func:`stiction_ros.app.analyze.analyze_file` returned.
+    path : str or Path
+        The HTML file; the PNGs go to the folder ``<stem>_figures`` beside it.
+    say : callable
+        Receives one progress line.
+
+    Returns
+    -------
+    Path
+        The HTML file written.
+
+    """
+    # Imported here: matplotlib and the landscape search are needed only for --html.
+    from stiction_ros.analysis.identify import mse_landscape
+    from stiction_ros.viz import figures
+    from stiction_ros.viz.mismatch_figures import mismatch_figure
+    from stiction_ros.viz.report_html import render
+    from stiction_ros.viz.signature_plots import signature_figure
+    html_path = Path(path)
+    fig_dir = html_path.with_name(html_path.stem + '_figures')
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    rec = analysis.record
+    paths = [figures.trends_figure(analysis, fig_dir / 'trends.png'),
+             figures.maps_figure(analysis, fig_dir / 'maps.png')]
+    if getattr(analysis, 'explain_arrays', None) is not None:
+        paths.append(mismatch_figure(analysis.report, analysis.explain_arrays,
+                                     fig_dir / 'mismatch.png'))
+    if analysis.signatures:
+        x = analysis.signature_inputs
+        paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
+                                      fig_dir / 'signatures.png'))
+    for fit in analysis.fits:
+        if fit.source == 'identified':
+            land = mse_landscape(rec.signals['op'], rec.signals['mv'], fit,
+                                 rec.valve_segments(min_samples=2), rec.sample_time)
+            paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{fit.model}.png'))
+    write_text(html_path, render(analysis.report, [p for p in paths if p]))
+    say(f'wrote {html_path} (figures in {fig_dir})')
+    return html_path

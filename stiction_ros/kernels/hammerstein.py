@@ -1,0 +1,139 @@
+"""
+Compiled kernels of the Hammerstein quantification (``analysis.hammerstein``).
+
+A Kano valve's path before an ARX plant, scored for every (S, J) of a grid
+and every dead time in one pass: the plant's regression is reduced once per
+valve path by a rank-``nb`` update of a projection computed outside.
+"""
+
+import math
+
+import numpy as np
+
+from stiction_ros._jit import njit
+from stiction_ros.kernels.arrays import Floats, Ints
+from stiction_ros.kernels.sse import kano_output
+
+
+@njit(cache=True)
+def _reduction(h: Floats, g: Floats) -> float:
+    # g' H^-1 g by Cholesky; a pivot lost to round-off marks a column that
+    # repeats the others (a valve that never moves), which explains nothing.
+    m = g.shape[0]
+    low = np.zeros((m, m))
+    z = np.zeros(m)
+    for i in range(m):
+        for j in range(i + 1):
+            s = h[i, j]
+            for k in range(j):
+                s -= low[i, k] * low[j, k]
+            if i == j:
+                if s <= 1e-10 * max(h[i, i], 1e-300):
+                    low[i, i] = 0.0
+                else:
+                    low[i, i] = math.sqrt(s)
+            elif low[j, j] > 0.0:
+                low[i, j] = s / low[j, j]
+        if low[i, i] > 0.0:
+            s = g[i]
+            for k in range(i):
+                s -= low[i, k] * z[k]
+            z[i] = s / low[i, i]
+    return np.sum(z * z)
+
+
+@njit(cache=True)
+def segment_path(u: Floats, S: float, J: float, direction: int, fraction: float) -> Floats:
+    """
+    Return Kano's output for ``u`` from the start state (``direction``, ``fraction``).
+
+    ``direction`` 0: at rest at ``u[0]`` with no direction, so breakaway
+    needs (S + J) / 2 either way.  +1 or -1: at rest after moving that way,
+    so it breaks away J onwards or S back from the OP where it stuck; that
+    OP lies ``fraction`` (0 to 1) of the way across the band of stick points
+    from which ``u[0]`` does not break it away.  Two samples of history in
+    front of ``u`` put the model in that state.
+    """
+    if direction == 0:
+        return kano_output(u, u[0], S, J, 0.0)
+    stuck_at = u[0] - (J if direction > 0 else S) + fraction * (S + J)
+    w = np.empty(u.shape[0] + 2)
+    w[0] = stuck_at - direction * (S + J + 1.0)
+    w[1] = stuck_at
+    w[2:] = u
+    return kano_output(w, w[0], S, J, 0.0)[2:]
+
+
+@njit(cache=True)
+def _valve_path(u: Floats, starts: Ints, stops: Ints, S: float, J: float, ubar: float,
+                integrate: bool, start_dir: Ints, start_frac: Floats, v: Floats) -> None:
+    # Centred so that the cross products below do not cancel catastrophically.
+    for s in range(starts.shape[0]):
+        a = starts[s]
+        b = stops[s]
+        v[a:b] = segment_path(u[a:b], S, J, start_dir[s], start_frac[s]) - ubar
+        if integrate:
+            v[a:b] = np.cumsum(v[a:b])
+
+
+@njit(cache=True)
+def _best_delay(v: Floats, rows: Ints, row_seg: Ints, seg_rows: Floats, qy: Floats,
+                tres: Floats, tt: float, dlo: int, dhi: int, nb: int) -> tuple[float, int]:
+    # Cross products of every lag of v with the projected regressors, then
+    # the SSE of each dead time from a small (nb x nb) system.
+    nl = dhi - dlo + nb
+    p = qy.shape[1]
+    nseg = seg_rows.shape[0]
+    qv = np.zeros((nl, p))
+    tv = np.zeros(nl)
+    vv = np.zeros((nl, nb))
+    sv = np.zeros((nseg, nl))
+    for r in range(rows.shape[0]):
+        k = rows[r] - dlo
+        s = row_seg[r]
+        for i in range(nl):
+            x = v[k - i]
+            sv[s, i] += x
+            tv[i] += x * tres[r]
+            for c in range(p):
+                qv[i, c] += x * qy[r, c]
+            for m in range(min(nb, nl - i)):
+                vv[i, m] += x * v[k - i - m]
+    best = np.inf
+    best_d = dlo
+    h = np.empty((nb, nb))
+    g = np.empty(nb)
+    for d in range(dhi - dlo + 1):
+        for a in range(nb):
+            g[a] = tv[d + a]
+            for b in range(a, nb):
+                x = vv[d + a, b - a]
+                for s in range(nseg):
+                    if seg_rows[s] > 0.0:
+                        x -= sv[s, d + a] * sv[s, d + b] / seg_rows[s]
+                for c in range(p):
+                    x -= qv[d + a, c] * qv[d + b, c]
+                h[a, b] = x
+                h[b, a] = x
+        sse = tt - _reduction(h, g)
+        if sse < best:
+            best = sse
+            best_d = d + dlo
+    return max(best, 0.0), best_d
+
+
+@njit(cache=True)
+def _grid_sse(u: Floats, ubar: float, integrate: bool, start_dir: Ints, start_frac: Floats,
+              starts: Ints, stops: Ints, rows: Ints, row_seg: Ints, seg_rows: Floats,
+              qy: Floats, tres: Floats, tt: float, s_values: Floats, j_values: Floats, dlo: int,
+              dhi: int, nb: int) -> tuple[Floats, Ints]:
+    v = np.zeros(u.shape[0])
+    sse = np.empty((s_values.shape[0], j_values.shape[0]))
+    delay = np.empty((s_values.shape[0], j_values.shape[0]), dtype=np.int64)
+    for i in range(s_values.shape[0]):
+        for j in range(j_values.shape[0]):
+            _valve_path(u, starts, stops, s_values[i], j_values[j], ubar, integrate, start_dir,
+                        start_frac, v)
+            sse[i, j], delay[i, j] = _best_delay(v, rows, row_seg, seg_rows, qy, tres, tt,
+                                                 dlo, dhi, nb)
+    return sse, delay

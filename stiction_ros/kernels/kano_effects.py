@@ -1,0 +1,210 @@
+"""
+Kano's model with the physics of docs/EFFECTS.md switched on by parameters.
+
+One compiled loop serves the simulator (``kano_effects_run``, ``kano_effects_output``)
+and the fits (``kano_effects_sse``), so the model that explains a recording is the model
+that generated the concealed test cases.  Every extra parameter at zero gives
+Kano's plain model sample for sample (tested), which makes the candidates
+nested.  The parameter vector ``p`` is indexed by the constants below:
+
+- ``A_IN``: pole of a first-order lag on OP before the friction (actuator_lag);
+- ``B_OUT``: pole of a first-order lag on the position after it (measurement_lag);
+- ``ASYM``: friction forces scale by (1 + ASYM) opening and (1 - ASYM) closing, so
+  the kinetic band (S - J)/2 and static band (S + J)/2 of each direction do, and a
+  reversal from direction d needs (S - J)/2 (1 + ASYM d) + (S + J)/2 (1 - ASYM d);
+- ``DWELL``, ``DWELL_TAU``: the static band grows by DWELL * S * r / (r + DWELL_TAU)
+  after r samples at rest (Armstrong-Helouvry's dwell law; kinetic band unchanged);
+- ``POS``, ``POS_REF``: S and J scale by 1 + POS * (y - POS_REF) / 50;
+- ``DRIFT``, ``DRIFT_MID``, ``DRIFT_SPAN``: S and J scale by
+  1 + DRIFT * (k - DRIFT_MID) / DRIFT_SPAN at sample k;
+- ``STRIBECK``: a moving valve sticks again when the input moves less than
+  this (% per sample), the velocity-weakening friction of a Stribeck curve;
+- ``CREEP``: at rest the position follows CREEP * (u - u_s): pre-sliding
+  deflection, bounded by the stick band and undone on reversal.
+"""
+
+import numpy as np
+
+from stiction_ros._jit import njit
+from stiction_ros.kernels.arrays import Floats, Ints
+from stiction_ros.kernels.sse import insert_best
+
+(A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
+ STRIBECK, CREEP) = range(12)
+N_PARAMS = 12
+
+
+@njit(cache=True, inline='always')
+def _clip(x: float) -> float:
+    return 0.0 if x < 0.0 else 100.0 if x > 100.0 else x
+
+
+def plain_params() -> Floats:
+    """Return the parameter vector of the plain model (every effect off)."""
+    p = np.zeros(N_PARAMS)
+    p[DWELL_TAU] = 1.0
+    p[POS_REF] = 50.0
+    p[DRIFT_SPAN] = 1.0
+    return p
+
+
+@njit(cache=True, inline='always')
+def _scale(p: Floats, d: float, y: float, k: float) -> float:
+    m = 1.0 + p[ASYM] * d + p[POS] * (y - p[POS_REF]) / 50.0
+    m += p[DRIFT] * (k - p[DRIFT_MID]) / p[DRIFT_SPAN]
+    return m if m > 0.0 else 0.0
+
+
+@njit(cache=True, inline='always')
+def _breakaway_fx(d: float, rel: float, S: float, J: float, p: Floats, y: float, k: float,
+                  rest: float) -> float:
+    # Kano's breakaway with the band of the direction the valve would move in.
+    grow = 0.0
+    if p[DWELL] != 0.0:
+        grow = p[DWELL] * S * rest / (rest + p[DWELL_TAU])
+    if d == 0.0:
+        nd = 1.0 if rel > 0.0 else -1.0
+        m = _scale(p, nd, y, k)
+        if abs(rel) > 0.5 * (S + J) * m + grow:
+            return nd
+        return 0.0
+    m_old = _scale(p, d, y, k)
+    m_new = _scale(p, -d, y, k)
+    # Reversing, the input first undoes the kinetic friction of the old direction,
+    # then overcomes the static friction of the new one: (S-J)/2 + (S+J)/2 = S when
+    # both directions are alike.
+    if -d * rel > 0.5 * (S - J) * m_old + 0.5 * (S + J) * m_new + grow:
+        return -d
+    if d * rel > J * m_old + grow:
+        return d
+    return 0.0
+
+
+# The state of one run, as kano_effects_run's callers hold it between calls.
+(ST_YM, ST_U1, ST_U2, ST_US, ST_RESTING, ST_D, ST_YK, ST_UF, ST_SINCE, ST_YREST,
+ ST_K) = range(11)
+STATE_SIZE = 11
+
+
+@njit(cache=True)
+def _segment(u: Floats, y: Floats, i0: int, i1: int, S: float, J: float, p: Floats, st: Floats,
+             sse: float, limit: float, out: Floats, resting_out: Floats) -> float:
+    # The one loop behind the fits, the outputs and the simulator.  Written out
+    # with the state in locals rather than as a step function returning a tuple:
+    # numba kept that 10-tuple in memory, three times slower per sample.
+    # With ``y`` non-empty it returns ``sse`` plus this stretch's squared errors
+    # (stopping once past ``limit``); with ``out`` non-empty it writes the position
+    # there, and the resting flag into ``resting_out`` when that is non-empty.
+    score, write, flags = y.shape[0] > 0, out.shape[0] > 0, resting_out.shape[0] > 0
+    ym, u1, u2, us, d, yk = st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK]
+    uf, since, yrest, k = st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K]
+    resting = st[ST_RESTING] > 0.5
+    half_kinetic = 0.5 * (S - J)
+    for i in range(i0, i1):
+        uf = p[A_IN] * uf + (1.0 - p[A_IN]) * u[i]
+        uk = _clip(uf)
+        if not resting and ((uk - u1) * (u1 - u2) <= 0.0 or abs(uk - u1) < p[STRIBECK]):
+            us = u1
+            resting = True
+            since = k
+            yrest = yk
+        if resting:
+            nd = _breakaway_fx(d, uk - us, S, J, p, yk, k, k - since)
+            if nd != 0.0:
+                d = nd
+                resting = False
+        if resting:
+            yk = _clip(yrest + p[CREEP] * (uk - us))
+        else:
+            yk = _clip(uk - d * half_kinetic * _scale(p, d, yk, k))
+        ym = p[B_OUT] * ym + (1.0 - p[B_OUT]) * yk
+        u2 = u1
+        u1 = uk
+        k += 1.0
+        if write:
+            out[i] = ym
+            if flags:
+                resting_out[i] = 1.0 if resting else 0.0
+        if score:
+            e = ym - y[i]
+            sse += e * e
+            if sse > limit:
+                break
+    st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK] = ym, u1, u2, us, d, yk
+    st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K] = uf, since, yrest, k
+    st[ST_RESTING] = 1.0 if resting else 0.0
+    return sse
+
+
+@njit(cache=True)
+def _at_rest(u0: float, k: float, y0: float) -> Floats:
+    # A valve resting at y0 with no friction force stored, before sample k.
+    st = np.empty(STATE_SIZE)
+    u1 = _clip(u0)
+    st[ST_YM], st[ST_U1], st[ST_U2], st[ST_US], st[ST_D], st[ST_YK] = y0, u1, u1, u1, 0.0, y0
+    st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K] = u0, k, y0, k
+    st[ST_RESTING] = 1.0
+    return st
+
+
+@njit(cache=True, nogil=True)
+def kano_effects_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Floats, S: float,
+                     J: float, p: Floats, limit: float) -> float:
+    """
+    Return the SSE against ``y`` over the segments, or a number > ``limit`` once past it.
+
+    Segment ``s`` starts at rest at position ``y0s[s]``.
+    """
+    sse = 0.0
+    none = np.empty(0)
+    for s in range(starts.shape[0]):
+        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
+        sse = _segment(u, y, starts[s], stops[s], S, J, p, st, sse, limit, none, none)
+        if sse > limit:
+            return sse
+    return sse
+
+
+@njit(cache=True, nogil=True)
+def kano_effects_grid(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Floats,
+                      s_values: Floats, j_values: Floats, p: Floats, limit: float,
+                      keep: int) -> Floats:
+    """
+    Return the SSE of every (S, J) on a grid with the effect parameters ``p``.
+
+    Only the ``keep`` best points matter to the caller, so each point stops summing
+    once it is worse than the ``keep``-th best so far (or ``limit``): those best
+    points are exact, every other entry is merely known to be worse.
+    """
+    out = np.empty((s_values.shape[0], j_values.shape[0]))
+    best = np.full(keep, np.inf)
+    for i in range(s_values.shape[0]):
+        for j in range(j_values.shape[0]):
+            e = kano_effects_sse(u, y, starts, stops, y0s, s_values[i], j_values[j],
+                                 p, min(limit, best[keep - 1]))
+            out[i, j] = e
+            if e < best[keep - 1]:
+                insert_best(best, e)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def kano_effects_output(u: Floats, starts: Ints, stops: Ints, y0s: Floats, S: float, J: float,
+                        p: Floats, out: Floats, resting_out: Floats) -> None:
+    """Write the model's position into ``out`` (and 1.0 where at rest into ``resting_out``)."""
+    none = np.empty(0)
+    for s in range(starts.shape[0]):
+        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
+        _segment(u, none, starts[s], stops[s], S, J, p, st, 0.0, np.inf, out, resting_out)
+
+
+@njit(cache=True)
+def kano_effects_run(u: Floats, out: Floats, st: Floats, S: float, J: float, p: Floats) -> None:
+    """
+    Advance the model over ``u`` from the state array ``st`` (updated in place).
+
+    ``st`` holds the ``ST_*`` entries (position seen after any measurement lag,
+    u(k-1), u(k-2), u_s, resting, direction, position, lagged input, rest start,
+    rest position, sample counter); ``stiction_ros.models.kano_effects`` builds it.
+    """
+    _segment(u, np.empty(0), 0, u.shape[0], S, J, p, st, 0.0, np.inf, out, np.empty(0))

@@ -1,0 +1,101 @@
+"""
+The accuracy study behind docs/ACCURACY.md: every method on the same held-out records.
+
+Two held-out sets, reported first:
+
+* the labelled plant loops, grouped by valve (historian tag).  The learned
+  detector is trained and calibrated on simulated loops only, so every tag
+  is scored by a model that never saw it; the old rule's cross-validated
+  row chooses its voters and threshold on the other tags, fold by fold;
+* simulated records whose seeds were never used for training, calibration
+  or any choice of threshold (``dataset.TEST``).
+
+Each method is a function of one case giving True (stiction), False (no
+stiction) or None (cannot tell).  Balanced accuracy counts ``cannot tell``
+as "no stiction" (a refusal earns nothing), and is also given on the
+decided records alone with the share decided.
+"""
+
+import numpy as np
+
+from stiction_ros.analysis.detection.features import FEATURE_NAMES
+from stiction_ros.analysis.signatures import he_curve_fit, horch, slip_events, yamashita
+from stiction_ros.study.accuracy import balanced_accuracy, confusion
+
+# Published thresholds of the single signatures, read from the feature vector.
+FEATURE_RULES = {
+    'horch alone (published 120 deg)': ('horch_deg', horch.STICTION_DEG),
+    'he_curve_fit alone (published SI 0.6)': ('he_si', he_curve_fit.STICTION_SI),
+    'yamashita alone (published 0.25)': ('yamashita', yamashita.THRESHOLD),
+    'slip_events alone (1 event)': ('slip_events', slip_events.THRESHOLD),
+}
+
+
+def score(truth, answers) -> dict:
+    """Return confusion counts, cannot-tell counts and both balanced accuracies."""
+    truth = np.asarray(truth, dtype=bool)
+    told = np.array([a is not None for a in answers], dtype=bool)
+    pred = np.array([bool(a) for a in answers], dtype=bool)
+    c = confusion(truth, pred)
+    out = {**c, 'cannot_tell_sticky': int(np.sum(truth & ~told)),
+           'cannot_tell_healthy': int(np.sum(~truth & ~told)),
+           'balanced_accuracy': balanced_accuracy(c), 'decided_share': float(np.mean(told))}
+    if told.any() and truth[told].any() and (~truth[told]).any():
+        out['balanced_accuracy_decided'] = balanced_accuracy(confusion(truth[told],
+                                                                       pred[told]))
+    else:
+        out['balanced_accuracy_decided'] = float('nan')
+    return out
+
+
+def feature_rule(x: np.ndarray, name: str, threshold: float) -> list:
+    """Return the answers of ``feature >= threshold`` (NaN: the signature does not apply)."""
+    v = x[:, FEATURE_NAMES.index(name)]
+    return [bool(val >= threshold) if np.isfinite(val) else False for val in v]
+
+
+def best_threshold(values: np.ndarray, truth: np.ndarray) -> float:
+    """Return the threshold of ``values >= t`` with the best balanced accuracy on these cases."""
+    cand = np.unique(np.round(values[np.isfinite(values)], 3))
+    best, best_ba = float('inf'), -1.0
+    for t in cand:
+        ba = balanced_accuracy(confusion(truth, np.nan_to_num(values, nan=-np.inf) >= t))
+        if ba > best_ba + 1e-12:
+            best, best_ba = float(t), ba
+    return best
+
+
+def sim_rows(test: dict, model, stuck_threshold: float) -> dict:
+    """Return {method: score} on a simulated set built by ``dataset.build``."""
+    x, y = test['x'], test['y']
+    rows = {'learned detector (probability >= 0.5)':
+            score(y, list(model.probability(x) >= 0.5)) if len(y) else None,
+            'old rule (signature vote, published weights)': score(y, list(test['old_rule'])),
+            f'stuck-period test alone (OP share >= {stuck_threshold:.3g}, set on simulation)':
+            score(y, feature_rule(x, 'stuck_op_share', stuck_threshold))}
+    for label, (name, th) in FEATURE_RULES.items():
+        rows[label] = score(y, feature_rule(x, name, th))
+    return rows
+
+
+def by_kind(test: dict, model) -> list:
+    """Return rows (kind, label, records, share called stiction) of the simulated set."""
+    p = model.probability(test['x']) >= 0.5
+    rows = []
+    for kind in sorted(set(test['kind'])):
+        for lab in (True, False):
+            m = (test['kind'] == kind) & (test['y'] == lab)
+            if m.any():
+                rows.append((str(kind), lab, int(m.sum()), float(np.mean(p[m]))))
+    return rows
+
+
+def per_tag(cases: list, answers: list) -> list:
+    """Return rows (tag, label, records, called stiction, cannot tell) of the plant loops."""
+    rows = []
+    for tag in sorted({c['group'] for c in cases}):
+        idx = [i for i, c in enumerate(cases) if c['group'] == tag]
+        lab = cases[idx[0]]['label']
+        rows.append((tag, lab, len(idx), sum(answers[i] is True for i in idx),
+                     sum(answers[i] is None for i in idx)))
+    return rows

@@ -1,0 +1,48 @@
+"""Figures in the style of the chapter's Fig. 2.3: time trends and MV-OP / PV-OP maps."""
+
+# Figure draws without pyplot and needs no backend: importing this module leaves the
+# caller's matplotlib as it was, and no figure outlives its function.
+from matplotlib.figure import Figure
+
+
+def loop_figure(data, title, path, window=600.0):
+    """Save a 2x2 figure: OP/MV and OP/PV trends of the last ``window`` s, both maps; return it."""
+    t = data['t']
+    keep = t >= t[-1] - window
+    fig = Figure(figsize=(10, 6.5))
+    ax = fig.subplots(2, 2, gridspec_kw={'width_ratios': [2.2, 1]})
+    for row, (name, label) in enumerate((('mv', 'MV (valve position)'),
+                                         ('pv', 'PV (process output)'))):
+        a = ax[row, 0]
+        a.plot(t[keep], data['op'][keep], lw=0.9, color='tab:blue', label='OP (controller output)')
+        a.plot(t[keep], data[name][keep], lw=2.0, color='tab:red', label=label)
+        a.set_xlabel('time (s)')
+        a.set_ylabel('%' if name == 'mv' else 'PV')
+        a.legend(loc='upper right', fontsize=8)
+        a.grid(alpha=0.3)
+        m = ax[row, 1]
+        m.plot(data['op'][keep], data[name][keep], lw=1.0, color='k')
+        m.set_xlabel('OP')
+        m.set_ylabel(name.upper())
+        m.set_title(f'{name.upper()}-OP map', fontsize=9)
+        m.grid(alpha=0.3)
+    ax[0, 0].set_title('(a) OP and MV', fontsize=9)
+    ax[1, 0].set_title('(b) OP and PV', fontsize=9)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def mv_op_figure(op, mv, title, path, op_label='OP (%)', mv_label='MV (%)'):
+    """Save one MV-OP map (e.g. of the physical valve under a slow sinusoid); return ``path``."""
+    fig = Figure(figsize=(5, 4.5))
+    a = fig.subplots()
+    a.plot(op, mv, lw=1.0, color='k')
+    a.set_xlabel(op_label)
+    a.set_ylabel(mv_label)
+    a.set_title(title, fontsize=10)
+    a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path

@@ -1,0 +1,94 @@
+"""
+The analyzer's figures: trends, MV-OP and PV-OP maps with the models, the MSE landscape.
+
+Each function saves one PNG and returns its path, so the HTML report can
+embed it and an engineer can open it alone.
+"""
+
+# Figure draws without pyplot and needs no backend: importing this module leaves the
+# caller's matplotlib as it was, and no figure outlives its function.
+from matplotlib.figure import Figure
+import numpy as np
+
+COLORS = {'kano': 'tab:red', 'choudhury': 'tab:green'}
+
+
+def _shade_excluded(ax, record):
+    for ex in record.excluded:
+        ax.axvspan(ex['start_s'], ex['end_s'] + record.sample_time, color='0.85', lw=0)
+
+
+def trends_figure(analysis, path, window=None):
+    """Save OP/MV (measured and each model) and PV/SP against time; excluded stretches grey."""
+    rec = analysis.record
+    t = rec.t
+    keep = slice(None) if window is None else (t >= t[-1] - window)
+    rows = 2 if rec.has('pv') else 1
+    fig = Figure(figsize=(11, 3.2 * rows))
+    axes = fig.subplots(rows, 1, sharex=True, squeeze=False)
+    ax = axes[0, 0]
+    ax.plot(t[keep], rec.signals['op'][keep], color='tab:blue', lw=1, label='OP')
+    if rec.has('mv'):
+        ax.plot(t[keep], rec.signals['mv'][keep], color='k', lw=1, label='MV measured')
+    for model, mv_hat in analysis.predictions.items():
+        ax.plot(t[keep], mv_hat[keep], color=COLORS[model], lw=1, ls='--',
+                label=f'MV {model}')
+    ax.set_ylabel('%')
+    ax.legend(loc='upper right', fontsize=8, ncol=4)
+    _shade_excluded(ax, rec)
+    if rows == 2:
+        ax = axes[1, 0]
+        ax.plot(t[keep], rec.signals['pv'][keep], color='tab:purple', lw=1, label='PV')
+        if rec.has('sp'):
+            ax.plot(t[keep], rec.signals['sp'][keep], color='tab:orange', lw=1, label='SP')
+        ax.legend(loc='upper right', fontsize=8)
+        _shade_excluded(ax, rec)
+    axes[-1, 0].set_xlabel('time (s); grey: excluded')
+    fig.suptitle(f'{rec.name or rec.path}: time trends')
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def maps_figure(analysis, path):
+    """Save the MV-OP map with the models overlaid and the PV-OP map."""
+    rec = analysis.record
+    op = rec.signals['op']
+    panels = [p for p in ('mv', 'pv') if rec.has(p)]
+    if not panels:
+        return None
+    fig = Figure(figsize=(5.5 * len(panels), 4.6))
+    axes = fig.subplots(1, len(panels), squeeze=False)
+    for ax, name in zip(axes[0], panels):
+        ok = rec.valid
+        ax.plot(op[ok], rec.signals[name][ok], '.', ms=2, color='0.3', label=f'{name} measured')
+        if name == 'mv':
+            for model, mv_hat in analysis.predictions.items():
+                ax.plot(op[ok], mv_hat[ok], '-', lw=0.8, color=COLORS[model],
+                        label=f'{model}', alpha=0.8)
+            lo, hi = np.nanmin(op[ok]), np.nanmax(op[ok])
+            ax.plot([lo, hi], [lo, hi], ':', color='0.5', lw=0.8, label='ideal valve')
+        ax.set_xlabel('OP (%)')
+        ax.set_ylabel(f'{name.upper()}')
+        ax.set_title(f'{name.upper()}-OP map')
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def landscape_figure(landscape, path):
+    """Save the MSE over (S, J) around the optimum, log colour scale, with the 95 % region."""
+    s, j, mse = landscape['S'], landscape['J'], landscape['mse']
+    fig = Figure(figsize=(6, 4.8))
+    ax = fig.subplots()
+    im = ax.pcolormesh(j, s, np.log10(mse), shading='nearest', cmap='viridis')
+    fig.colorbar(im, ax=ax, label='log10 MSE')
+    ax.contour(j, s, mse, levels=[landscape['bound']], colors='w', linewidths=1)
+    ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=12, mew=2)
+    ax.set_xlabel('J (%)')
+    ax.set_ylabel('S (%)')
+    ax.set_title(f'{landscape["model"]}: MSE landscape (white: 95 % region)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
