@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv demo reproduce accuracy detector test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy detector test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -18,6 +18,11 @@ DEMO_CASE ?= undershoot
 
 venv:
 	@bash tools/bootstrap.sh
+
+# Regenerate config/params/<loop>_<case>/<node>.params.yaml from the loop files in config/
+# (test_param_load fails when they are stale).
+params: venv
+	$(PY) -c 'from stiction_ros.sim.ros_params import write_shipped_node_params as w; w("config")'
 
 demo: venv
 	rm -rf out/demo_bag out/demo_bag.logs

@@ -23,6 +23,7 @@ from bench.live_bench import bench_live, markdown as live_markdown
 from bench.load_bench import carried_section
 from bench.loop_bench import bench_loop, markdown as loop_markdown
 from bench.physical_bench import bench_physical, markdown as physical_markdown
+from bench.startup_bench import bench_startup, markdown as startup_markdown
 import numpy as np
 
 from stiction_ros.cli.study import machine_description
@@ -99,6 +100,7 @@ def main():
     ident = [bench_identify(best_time, m) for m in ('kano', 'choudhury')]
     ident.append(bench_identify(best_time, 'kano', 1_000_000))
     explain = bench_explain_speed()
+    startup = bench_startup()
     loops = ROOT.parent / 'shared' / 'data' / 'plant_loops'
     batch = bench_batch(loops) if loops.is_dir() else None
     detector = bench_detector(best_time, loops) if loops.is_dir() else None
@@ -129,6 +131,7 @@ def main():
     lines += physical_markdown(physical)
     lines += identify_markdown(ident)
     lines += explain_markdown(explain)
+    lines += startup_markdown(startup)
     lines += loop_markdown(loop)
     lines += bag_markdown(bag)
     lines += live_markdown(live)

@@ -2,7 +2,7 @@
 Bad messages at the nodes: rejected, the last good value held, counted and reported.
 
 The rules (``InputGuard``) alone, then a real valve node fed NaN, infinities and
-an absurd value over DDS, watched on its ``mv`` and on ``/diagnostics``.
+an absurd value over DDS, watched on its ``mv`` and on its namespace's ``diagnostics``.
 """
 
 import math
@@ -39,7 +39,7 @@ def test_a_valve_node_holds_its_position_through_nan_inf_and_absurd_op(probe, tm
     ns = '/bad'
     probe.listen(f'{ns}/mv')
     diags = []
-    probe.node.create_subscription(DiagnosticArray, '/diagnostics',
+    probe.node.create_subscription(DiagnosticArray, f'{ns}/diagnostics',
                                    lambda m: diags.extend(m.status), 10)
     valve = start_node('valve', {'sample_time': 0.05, 'model': 'kano', 'S': 1.0, 'J': 0.5,
                                  'stale_after': 1.0, 'input_limit': 1000.0}, ns, str(tmp_path))
@@ -49,8 +49,8 @@ def test_a_valve_node_holds_its_position_through_nan_inf_and_absurd_op(probe, tm
         sent = []
 
         def moved():
-            # Kano's valve rests at the first OP it sees: move it 50 -> 60 until it has
-            # matched and taken the step (an OP sent before discovery is lost).
+            # Alternate OP 50 and 60 until the valve has matched and taken the step to 60
+            # (an OP sent before discovery is lost).
             sent.append(60.0 if len(sent) % 20 >= 10 else 50.0)
             probe.publish(f'{ns}/op', sent[-1])
             return abs(probe.values(f'{ns}/mv')[-1] - 59.75) < 1e-9 and sent[-1] == 60.0

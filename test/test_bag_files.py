@@ -16,7 +16,7 @@ from stiction_ros.bag.repair import repair_bag
 from stiction_ros.bag.writer import BagError, BagWriter
 from stiction_ros.resources import config_file
 from stiction_ros.sim.loop_config import ConfigError, load_loop
-from stiction_ros.sim.ros_params import node_parameters, params_file
+from stiction_ros.sim.ros_params import node_parameters, node_params_file, params_file
 import yaml
 
 
@@ -94,9 +94,17 @@ def test_loop_file_maps_to_node_parameters_and_the_shipped_params_file():
     assert p['valve'] == {'sample_time': 1.0, 'phase': 0.75, 'model': 'choudhury',
                           'initial_position': 50.0, 'S': 5.0, 'J': 2.0}
     assert p['controller']['Kc'] == 0.2 and p['plant']['delay'] == 10.0
-    assert yaml.safe_load(p['controller']['setpoint_profile'])['type'] == 'steps'
-    shipped = config_file('concentration_undershoot.params.yaml').read_text()
-    assert shipped == params_file(cfg), 'regenerate with loop --write-params'
+    # The profile as typed parameters, its steps one flat [t0, v0, t1, v1] list.
+    assert p['controller']['setpoint_profile.steps'] == [0.0, 0.0, 10.0, 1.0]
+    assert p['controller']['setpoint_profile.type'] == 'steps'
+    assert 'disturbance_steps' not in p['plant']     # none: the node's default, []
+    # The loop launcher's file: every node by its full name, dotted names nested.
+    doc = yaml.safe_load(params_file(cfg, '/loop2'))
+    assert list(doc) == ['/loop2/plant', '/loop2/controller', '/loop2/valve']
+    assert doc['/loop2/controller']['ros__parameters']['setpoint_profile'] == {
+        'steps': [0.0, 0.0, 10.0, 1.0], 'type': 'steps'}
+    shipped = config_file('params/concentration_undershoot/valve.params.yaml').read_text()
+    assert shipped == node_params_file(cfg, 'valve'), 'regenerate with make params'
     noisy = load_loop(config_file('concentration_loop.yaml'), 'undershoot', {'noise.mv_std': 0.1})
     with pytest.raises(ConfigError, match='mv_std'):
         node_parameters(noisy)

@@ -39,7 +39,8 @@ def test_the_valve_model_steps_as_it_simulates_and_each_effect_changes_it(effect
     size = {name: 0.5 * (lo + hi) for name, (lo, hi) in SIZES[effect].items()}
     valve = create('kano_effects', S=3.0, J=1.0, effect=effect, **size)
     whole = valve.simulate(u, y0=50.0)
-    valve.reset(y0=50.0)
+    # simulate(u, y0) rests the valve under its first input (models/base.py).
+    valve.reset(y0=50.0, u_rest=u[0])
     assert np.array_equal(whole, [valve.step(x) for x in u])
     plain = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0)
     assert np.max(np.abs(whole - plain)) > 0.1

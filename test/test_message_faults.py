@@ -5,7 +5,7 @@ The loop runs from the ``loop`` executable on a lockstep sim clock with
 ``--inject op:...``: the valve loses 10 % of the OP messages on their way in
 and delays the rest by up to 0.4 of a sample, in order, so that some arrive
 after it has acted.  The valve then acts on the OP it held: it
-reports that on ``/diagnostics`` and publishes ``held_inputs`` with the
+reports that on its ``diagnostics`` and publishes ``held_inputs`` with the
 value it used, which the recorder records.  In the bag, ``op`` is what the
 controller sent, so at a held sample the recorded OP is not what the valve
 used; the analyzer puts the used value in its place (and excludes the
@@ -50,7 +50,7 @@ def test_lost_and_late_op_is_reported_marked_and_corrected(probe, tmp_path):
     def on_diag(msg):
         warnings.extend(s.message for s in msg.status
                         if s.name.startswith(f'{ns}/valve') and 'lost or late' in s.message)
-    probe.node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    probe.node.create_subscription(DiagnosticArray, f'{ns}/diagnostics', on_diag, 10)
 
     # A lockstep sim clock: which messages come late is decided by the seeded faults
     # alone, not by how busy the machine is.
@@ -62,7 +62,7 @@ def test_lost_and_late_op_is_reported_marked_and_corrected(probe, tmp_path):
     assert run.returncode == 0, run.stdout + run.stderr
     log = (tmp_path / 'bag.logs' / 'valve.log').read_text()
     assert 'acted on a held op' in log and 'inputs lost' in log
-    wait_for(lambda: warnings, what='a /diagnostics warning about held OP')
+    wait_for(lambda: warnings, what='a diagnostics warning about held OP')
     assert json.loads((tmp_path / 'summary.json').read_text())['bag'] == str(bag)
 
     marks = read_bag(bag).topic('held_inputs').decoded()

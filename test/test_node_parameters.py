@@ -26,13 +26,15 @@ def valve(probe, tmp_path):
     assert stop(proc) == 0, (tmp_path / 'valve.log').read_text()
 
 
-def test_descriptors_carry_ranges_read_only_and_allowed_values(probe, valve):
+def test_descriptors_carry_ranges_fixed_values_and_allowed_values(probe, valve):
     _, client = valve
     res = probe.call(lambda: client.describe_parameters(['S', 'sample_time', 'model', 'Fs']))
     s, ts, model, fs = res.descriptors
     assert s.type == ParameterType.PARAMETER_DOUBLE and s.description
     assert (s.floating_point_range[0].from_value, s.floating_point_range[0].to_value) == (0, 100)
-    assert ts.read_only and not s.read_only
+    # Fixed for the run, yet not rclpy read-only: the value it has may be set again.
+    assert not ts.read_only and 'fixed for the run' in ts.additional_constraints
+    assert 'fixed for the run' not in s.additional_constraints
     assert 'kano' in model.additional_constraints and 'physical' in model.additional_constraints
     assert '(physical)' in fs.description
 
@@ -44,7 +46,7 @@ def test_valid_change_applies_and_invalid_ones_are_rejected_with_a_reason(probe,
     cases = {
         'S': (-1.0, ''),                          # below the declared range (rclpy)
         'model': ('kanoo', 'is not one of'),      # allowed values (on-set callback)
-        'sample_time': (0.1, 'read-only'),        # fixed for the run
+        'sample_time': (0.1, 'only be set at start-up'),   # fixed for the run
         'Fs': (20000.0, 'the stem cannot move'),  # a physical set that cannot move the stem
         'Fc': (900.0, 'Fs >= Fc'),                # cross-check of the physical model
     }
@@ -101,7 +103,7 @@ def test_model_switch_is_bumpless_and_a_new_S_applies_live(probe, valve):
 
 
 def test_shipped_parameter_file_loads_with_params_file(probe, tmp_path):
-    params = config_file('concentration_undershoot.params.yaml')
+    params = config_file('params/concentration_undershoot/valve.params.yaml')
     proc = start_node('valve', log_dir=str(tmp_path), extra=['--params-file', str(params)])
     try:
         client = probe.params('/valve')

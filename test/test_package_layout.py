@@ -3,8 +3,10 @@
 import os
 from pathlib import Path
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -51,7 +53,12 @@ def test_colcon_build_gives_the_ament_layout(colcon_install):
     assert marker.is_file()
     assert (prefix / 'share/stiction_ros/package.xml').is_file()
     assert (prefix / 'share/stiction_ros/config/concentration_loop.yaml').is_file()
-    assert (prefix / 'share/stiction_ros/config/concentration_undershoot.params.yaml').is_file()
+    for node in ('plant', 'controller', 'valve'):
+        params = f'share/stiction_ros/config/params/concentration_undershoot/{node}.params.yaml'
+        assert (prefix / params).is_file()
+    shipped = list((ROOT / 'config/params').glob('*/*.params.yaml'))
+    installed = list((prefix / 'share/stiction_ros/config/params').glob('*/*.params.yaml'))
+    assert len(installed) == len(shipped) >= 15
     assert (prefix / 'share/stiction_ros/launch/loop.launch.py').is_file()
     for exe in EXECUTABLES:
         path = prefix / 'lib/stiction_ros' / exe
@@ -98,3 +105,29 @@ def test_installed_node_executable_starts_and_explains_a_bad_parameter(colcon_in
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 2
     assert "model = 'kanoo' is not one of" in run.stderr
+
+
+def test_the_build_compiles_the_kernels_so_a_node_starts_without_compiling(
+        colcon_install, tmp_path):
+    site = next((colcon_install / 'lib').glob('python3*/site-packages'))
+    assert list((site / 'stiction_ros/kernels/__pycache__').glob('valves.kano_run-*.nbi'))
+    # numba reports each cache load and save: the installed valve loads every kernel it
+    # uses and compiles (saves) none.
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(colcon_install), PYTHONPATH=str(site),
+               NUMBA_DEBUG_CACHE='1')
+    env.pop('NUMBA_CACHE_DIR', None)
+    exe = colcon_install / 'lib/stiction_ros/valve'
+    log = tmp_path / 'valve.log'
+    with open(log, 'wb') as out:
+        proc = subprocess.Popen([str(exe), '--ros-args', '-r', '__ns:=/precompiled'], env=env,
+                                stdout=out, stderr=subprocess.STDOUT)
+        try:
+            deadline = time.monotonic() + 60.0
+            while b' at ' not in log.read_bytes() and time.monotonic() < deadline:
+                time.sleep(0.1)    # the node logs its model 'at <sample time> s' once started
+        finally:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(30)
+    text = log.read_text(errors='replace')
+    assert 'data loaded from' in text and str(site) in text, text[-2000:]
+    assert 'data saved to' not in text, text[-2000:]

@@ -3,10 +3,12 @@ Every parameter of every node, through the standard services as ``ros2 param`` u
 
 One process per node kind; the test lists each node's parameters and checks
 what ``ros2 param describe`` would show (a range for every number, an
-allowed set or a stated rule for every settable string), then sets each
-settable number just outside its range, each settable string to something
-invalid and each inconsistent pair, and checks that every rejection carries
-a reason and changes nothing, also inside an atomic call with a valid value.
+allowed set or a stated rule for every settable string or array), then sets
+each settable number just outside its range, each settable string or array
+to something invalid and each inconsistent pair, and checks that every
+rejection carries a reason and changes nothing, also inside an atomic call
+with a valid value.  A loop node's parameter fixed for the run takes the
+value it has and refuses any other, naming the restart that would set it.
 """
 
 import time
@@ -18,8 +20,13 @@ from ros_helpers import start_node, stop
 pytestmark = pytest.mark.ros
 ROS_OWN = {'use_sim_time', 'start_type_description_service'}
 NUMBERS = {T.PARAMETER_DOUBLE, T.PARAMETER_INTEGER}
-# Settable strings parsed by the node: a value each must refuse.
-BAD_TEXT = {'setpoint_profile': '{type: sinus, period: 10}', 'op_profile': '[1, 2'}
+# Settable strings with no allowed set: a value each must refuse (else 'no-such-choice').
+BAD_TEXT = {f'{p}.{key}': '' for p in ('setpoint_profile', 'op_profile')
+            for key in ('column', 'time_column')}
+# Not [t, v] pairs (an odd count), and a change of the plant's num, den, load steps.
+BAD_ARRAY = [1.0, 2.0, 3.0]
+ARRAYS = {T.PARAMETER_DOUBLE_ARRAY, T.PARAMETER_STRING_ARRAY}
+LOOP_NODES = ('valve', 'plant', 'controller')
 # Combinations that are each in range but inconsistent together.
 INCONSISTENT = {'controller': {'op_min': 80.0, 'op_max': 20.0},
                 'valve': {'Fc': 900.0, 'Fs': 800.0}}
@@ -63,10 +70,12 @@ def test_every_parameter_says_what_it_accepts(probe, nodes, name):
         assert d.description, (name, pname)
         if d.type in NUMBERS:
             assert d.floating_point_range or d.integer_range, (name, pname, 'no range')
-        elif d.type == T.PARAMETER_STRING and not d.read_only:
+        elif (d.type == T.PARAMETER_STRING or d.type in ARRAYS) and not d.read_only:
             assert d.additional_constraints, (name, pname, 'no allowed set or rule')
         else:
             assert d.read_only or d.type == T.PARAMETER_BOOL, (name, pname)
+        fixed = 'fixed for the run' in d.additional_constraints
+        assert fixed == ('Fixed for the run' in d.description and not d.read_only), (name, pname)
 
 
 @pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])
@@ -83,6 +92,8 @@ def test_invalid_values_are_rejected_with_a_reason_and_change_nothing(probe, nod
             bad = int(bad) if d.type == T.PARAMETER_INTEGER else float(bad)
         elif d.type == T.PARAMETER_STRING:
             bad = BAD_TEXT.get(pname, 'no-such-choice')
+        elif d.type == T.PARAMETER_DOUBLE_ARRAY:
+            bad = BAD_ARRAY
         else:
             continue
         res = probe.set_params(client, **{pname: bad})[0]
@@ -106,3 +117,31 @@ def test_inconsistent_combinations_are_refused_atomically(probe, nodes, name):
     res = probe.set_params(client, atomically=True, **{settable: 1.5}, **pair)[0]
     assert not res.successful
     assert probe.get_params(client, settable, *pair) == keep + before
+
+
+def other_value(d, value):
+    """Return a valid value of ``d``'s type and range that is not ``value``."""
+    if d.type in NUMBERS:
+        r = (d.floating_point_range or d.integer_range)[0]
+        return r.from_value if value != r.from_value else r.to_value
+    if d.type == T.PARAMETER_DOUBLE_ARRAY:
+        return list(value) + [1.0, 2.0]
+    return value + '.other'
+
+
+@pytest.mark.parametrize('name', LOOP_NODES)
+def test_a_parameter_fixed_for_the_run_takes_its_value_and_refuses_a_change(probe, nodes, name):
+    client = nodes[name]
+    fixed = {p: d for p, d in describe(probe, client).items()
+             if 'fixed for the run' in d.additional_constraints}
+    assert {'sample_time', 'phase', 'state_file'} <= set(fixed)
+    for pname, d in fixed.items():
+        before = probe.get_params(client, pname)
+        # An array comes back as array.array, which rclpy's Parameter does not take.
+        value = list(before[0]) if d.type in ARRAYS else before[0]
+        assert probe.set_params(client, **{pname: value})[0].successful, pname
+        res = probe.set_params(client, **{pname: other_value(d, value)})[0]
+        assert not res.successful, pname
+        assert f'{pname} can only be set at start-up' in res.reason, res.reason
+        assert f'-p {pname}:=' in res.reason, res.reason
+        assert probe.get_params(client, pname) == before, pname

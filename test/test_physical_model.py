@@ -387,7 +387,8 @@ def test_step_equals_simulate(params):
     m.reset()
     y_step = np.array([m.step(ui) for ui in u])
     np.testing.assert_array_equal(y_sim, y_step)
-    m.reset(30.0)
+    # simulate(u, y0) rests the valve under its first input (models/base.py).
+    m.reset(30.0, u_rest=u[0])
     y_step0 = np.array([m.step(ui) for ui in u])
     np.testing.assert_array_equal(y_step0, Physical(**params).simulate(u, y0=30.0))
 

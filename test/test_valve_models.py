@@ -233,3 +233,53 @@ def test_kano_air_chamber_is_a_first_order_lag():
     ref, _ = signal.lfilter(b, a, u, zi=zi)
     # the lag acts on the current sample, so it leads scipy's ZOH form by one sample
     np.testing.assert_allclose(y[:-1], ref[1:], atol=1e-9)
+
+
+STICKY = [('kano', {'S': 6.0, 'J': 2.0}), ('kano', {'S': 6.0, 'J': 2.0, 'tau': 2.0}),
+          ('choudhury', {'S': 6.0, 'J': 2.0}), ('he', {'S': 6.0, 'J': 2.0}),
+          ('stenman', {'S': 6.0}), ('kano_effects', {'S': 6.0, 'J': 2.0})]
+
+
+@pytest.mark.parametrize('name, kw', STICKY)
+@pytest.mark.parametrize('y0', [21.0, 37.0, 50.0, 79.0])
+@pytest.mark.parametrize('sign', [1.0, -1.0])
+def test_a_valve_put_at_rest_moves_once_the_commanded_change_exceeds_its_band(name, kw, y0,
+                                                                              sign):
+    # The chapter's models: a valve at rest under its input breaks away once the input has
+    # moved more than the static band from it, whatever the first input is.
+    model = create(name, **kw)
+    target = y0 + sign * 20.0
+    model.reset(y0=y0)
+    moved = [model.step(target) for _ in range(20)]
+    assert sign * (moved[-1] - y0) > 10.0, moved
+    assert abs(moved[-1] - target) <= kw['S'], moved
+    # A change inside the deadband (S - J) / 2 leaves it where it is.
+    model.reset(y0=y0)
+    small = y0 + sign * 0.4 * (kw['S'] - kw.get('J', 0.0)) / 2.0
+    assert [model.step(small) for _ in range(20)] == [y0] * 20
+
+
+def test_a_physical_valve_put_at_rest_moves_once_the_pressure_change_beats_friction():
+    model = create('physical', sample_time=0.1)
+    # At rest at 40 % under the input whose pressure balances the spring there: a command
+    # whose extra force beats static friction (Fs / (A dp) of the span) moves it toward the
+    # command; one inside that band does not.
+    p = model.params
+    band = 100.0 * p['Fs'] / (p['A'] * (p['p_max'] - p['p_min']))
+    rest = model.rest_input(40.0)
+    model.reset(y0=40.0)
+    far = [model.step(rest + 2.0 * band) for _ in range(200)]
+    assert far[-1] > 45.0, far[-5:]
+    model.reset(y0=40.0)
+    near = [model.step(rest + 0.5 * band) for _ in range(200)]
+    assert max(abs(x - 40.0) for x in near) < 1e-9
+
+
+def test_a_model_switch_at_rest_does_not_move_the_valve():
+    # The valve node switches models at rest under the OP in force (u_rest): no bump.
+    model = create('kano', S=6.0, J=2.0)
+    model.reset(y0=50.0)
+    y = [model.step(u) for u in (55.0, 55.5, 55.5)]   # moves, then sticks near 55
+    other = create('choudhury', S=6.0, J=2.0)
+    other.reset(y0=y[-1], u_rest=55.5)
+    assert [other.step(55.5) for _ in range(5)] == [y[-1]] * 5

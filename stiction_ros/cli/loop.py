@@ -29,13 +29,14 @@ import time
 
 from stiction_ros.app.live_summary import format_summary, summarise
 from stiction_ros.bag.reader import read_bag
-from stiction_ros.cli.sim import parse_set
 from stiction_ros.errors import LoopError, StictionError
-from stiction_ros.sim.loop_config import ConfigError, load_loop
-from stiction_ros.sim.ros_params import loop_extras, LOOP_NODES, params_file
+from stiction_ros.sim.launch_plan import resolve_config
+from stiction_ros.sim.loop_config import ConfigError, load_loop, parse_overrides
+from stiction_ros.sim.ros_params import loop_extras, LOOP_NODES, params_file, write_node_params
 
 MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'valve_node',
-           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node'}
+           'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node',
+           'loop_nodes': 'composed'}
 # The node that consumes each loop topic: where its injected faults happen.
 CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
 INJECT_KEYS = ('drop', 'delay', 'jitter', 'seed')
@@ -67,11 +68,20 @@ def parse_inject(items):
 
 
 def node_command(name, namespace, params_path, extra=()):
-    """Return the argv that starts node ``name`` with the given parameter file."""
+    """
+    Return the argv that starts node ``name`` with the given parameter file.
+
+    In a namespace every node (its time source, and the sim clock's publisher)
+    uses the loop's own clock topic ``<namespace>/clock``: two sped-up loops on
+    one ``/clock`` would each drive the other's nodes back and forth in time.
+    """
     cmd = [sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--ros-args',
            '--params-file', str(params_path)]
     if namespace:
         cmd += ['-r', f'__ns:={namespace}']
+    ns = namespace.strip('/')
+    if ns:
+        cmd += ['-r', f'/clock:=/{ns}/clock']
     return cmd + list(extra)
 
 
@@ -113,29 +123,81 @@ class Processes:
         return '\n'.join('    ' + x for x in text[-lines:])
 
     def stop(self, names, timeout=10.0):
-        """SIGINT the named nodes and wait; SIGKILL what does not exit in time."""
-        for name in names:
-            if name in self.procs and self.procs[name][0].poll() is None:
-                self.procs[name][0].send_signal(signal.SIGINT)
-        deadline = time.monotonic() + timeout
-        for name in names:
-            if name not in self.procs:
-                continue
-            p, log = self.procs[name]
-            try:
-                p.wait(max(deadline - time.monotonic(), 0.1))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-            log.close()
+        """
+        SIGINT the named nodes and wait; SIGKILL what does not exit in time.
+
+        A SIGINT or SIGTERM that comes meanwhile (Ctrl-C pressed again) is held
+        back until every node of the loop has exited, then delivered: it cannot
+        leave a node running or a bag unfinished.
+        """
+        # Held from the first stop to the last: between two calls (loop nodes, then the
+        # recorder) a KeyboardInterrupt would skip the recorder's stop.
+        held = getattr(self, '_held', None) or HeldSignals()
+        self._held = held
+        held.hold()
+        try:
+            for name in names:
+                if name in self.procs and self.procs[name][0].poll() is None:
+                    self.procs[name][0].send_signal(signal.SIGINT)
+            deadline = time.monotonic() + timeout
+            for name in names:
+                if name not in self.procs:
+                    continue
+                p, log = self.procs[name]
+                try:
+                    p.wait(max(deadline - time.monotonic(), 0.1))
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+                log.close()
+        finally:
+            if all(p.poll() is not None for p, _ in self.procs.values()):
+                # An exception on its way (the first Ctrl-C, a node that failed) ends the
+                # run already: what was held during its stop is not delivered on top.
+                held.release(deliver=sys.exc_info()[1] is None)
+
+
+class HeldSignals:
+    """SIGINT and SIGTERM noted instead of acted on, until :meth:`release` delivers them."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.previous = {}
+        self.got = []
+
+    def hold(self):
+        """Note SIGINT and SIGTERM from now on (in the main thread; elsewhere they cannot be)."""
+        if self.previous:
+            return
+        try:
+            for signum in self.SIGNALS:
+                if signal.getsignal(signum) is not None:    # None: set outside Python, kept
+                    self.previous[signum] = signal.signal(signum, self._note)
+        except ValueError:                                  # not the main thread
+            pass
+
+    def _note(self, signum, frame):
+        self.got.append(signum)
+
+    def release(self, deliver=True):
+        """Put the previous handlers back, then deliver each held signal once, in order."""
+        previous, self.previous = self.previous, {}
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        got, self.got = self.got, []
+        for signum in dict.fromkeys(got) if deliver else ():
+            signal.raise_signal(signum)
 
 
 def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=None,
-             progress=None, realtime_priority=0, respawn=False, respawned=None, inject=None):
+             progress=None, realtime_priority=0, respawn=False, respawned=None, inject=None,
+             composed=False):
     """
     Run the loop; return the bag path (or None) after every node has stopped.
 
-    ``rtf`` > 0 runs on a ``/clock`` at that real-time factor (else wall
+    ``rtf`` > 0 runs on a sim clock at that real-time factor, on ``/clock``
+    or, in a namespace, on the loop's own ``<namespace>/clock`` (else wall
     time, where ``realtime_priority`` > 0 runs the loop nodes under
     SCHED_FIFO).  With ``respawn`` each loop node keeps its state in the log
     directory (a file written after every sample, which costs time at high
@@ -143,9 +205,14 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     started again and resumes where it was (counted in the ``respawned``
     dict).  ``inject`` (from :func:`parse_inject`) makes the node that uses a
     topic lose and delay its messages (``inject_*`` parameters); the recorder
-    still records the topic as sent.  Raises :class:`LoopError` when a node
-    fails otherwise.
+    still records the topic as sent.  ``composed`` runs plant, controller and
+    valve in one process on one executor (``loop_nodes``); it takes neither
+    ``respawn`` nor ``inject``, which are set per node process.  Raises
+    :class:`LoopError` when a node fails otherwise.
     """
+    if composed and (respawn or inject):
+        raise ConfigError('--composed runs the loop nodes in one process: it cannot respawn '
+                          'one of them or inject faults into one; drop --respawn/--inject')
     ts = float(cfg['sample_time'])
     duration = float(duration if duration is not None else cfg['duration'])
     work = Path(log_dir or tempfile.mkdtemp(prefix='stiction_loop_'))
@@ -171,7 +238,8 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
         for topic, spec in (inject or {}).items():
             faults.setdefault(CONSUMER[topic], []).extend(
                 a for k, v in spec.items() for a in ('-p', f'inject_{k}:={v}'))
-        for name in LOOP_NODES:
+        loop_nodes = ('loop_nodes',) if composed else LOOP_NODES
+        for name in loop_nodes:
             keep = []
             if respawn:
                 state = work / f'{name}.state'
@@ -206,15 +274,24 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
                 progress()
         time.sleep(0.5)
     finally:
-        procs.stop(['sim_clock', 'controller', 'valve', 'plant'])
+        procs.stop(['sim_clock', 'controller', 'valve', 'plant', 'loop_nodes'])
         procs.stop(['recorder'], timeout=30.0)
     return record
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C raises KeyboardInterrupt, and handled the same way."""
+
+
+def _terminate(signum, frame):
+    raise Terminated
 
 
 def main(argv=None):
     """Run the command; return the process exit code."""
     ap = argparse.ArgumentParser(prog='loop', description=__doc__.split('\n')[1])
-    ap.add_argument('config', help='loop description (YAML), e.g. config/concentration_loop.yaml')
+    ap.add_argument('config', help='loop description (YAML): a path, or the name of a '
+                    'shipped file, e.g. concentration_loop.yaml')
     ap.add_argument('--case', help='a case from the "cases" section of the file')
     ap.add_argument('--set', action='append', metavar='KEY=VALUE',
                     help='override a setting, e.g. valve.S=7 (repeatable)')
@@ -234,15 +311,29 @@ def main(argv=None):
     ap.add_argument('--respawn', action='store_true',
                     help='restart a loop node that dies during the run; it resumes from the '
                     'state it saved after its last sample')
+    ap.add_argument('--composed', action='store_true',
+                    help='run plant, controller and valve as three nodes in one process on '
+                    'one executor (ROS 2 composition) instead of three processes')
     ap.add_argument('--json', metavar='FILE', help='write the summary as JSON')
     ap.add_argument('--write-params', metavar='FILE',
                     help='only write the ROS parameter file of the loop nodes, and exit')
+    ap.add_argument('--write-node-params', metavar='DIR',
+                    help='only write one parameter file per loop node into DIR '
+                    '(DIR/valve.params.yaml: for --params-file, or ros2 param load /valve), '
+                    'and exit')
     args = ap.parse_args(argv)
+    # SIGTERM (a supervisor, kill) stops the loop as Ctrl-C does.  By default it would end
+    # this process at once, and the nodes, each in a session of its own, would run on.
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        cfg = load_loop(args.config, args.case, parse_set(args.set))
+        cfg = load_loop(resolve_config(args.config), args.case, parse_overrides(args.set))
         if args.write_params:
             Path(args.write_params).write_text(params_file(cfg, args.namespace), encoding='utf-8')
             print(f'loop: wrote {args.write_params}', file=sys.stderr)
+            return 0
+        if args.write_node_params:
+            for path in write_node_params(cfg, args.write_node_params):
+                print(f'loop: wrote {path}', file=sys.stderr)
             return 0
         if args.rtf < 0:
             raise ConfigError('--rtf must be positive')
@@ -256,7 +347,8 @@ def main(argv=None):
         respawned = {}
         bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs,
                        realtime_priority=args.realtime_priority, respawn=args.respawn,
-                       respawned=respawned, inject=parse_inject(args.inject))
+                       respawned=respawned, inject=parse_inject(args.inject),
+                       composed=args.composed)
         print(f'loop: ran in {time.monotonic() - t0:.1f} s', file=sys.stderr)
         if bag is not None:
             summary = summarise(read_bag(bag), cfg)
@@ -269,9 +361,12 @@ def main(argv=None):
     except (StictionError, OSError) as err:
         print(f'loop: error: {err}', file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as err:
+        # Processes.stop has stopped every node (a Ctrl-C during the stop waits for it).
         print('loop: interrupted; nodes stopped, bag finalised', file=sys.stderr)
-        return 130
+        return 128 + (signal.SIGTERM if isinstance(err, Terminated) else signal.SIGINT)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return 0
 
 

@@ -12,21 +12,10 @@ import sys
 
 from stiction_ros.models import ModelError
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
-from stiction_ros.sim.loop_config import ConfigError, load_loop
+from stiction_ros.sim.launch_plan import resolve_config
+from stiction_ros.sim.loop_config import ConfigError, load_loop, parse_overrides
 from stiction_ros.sim.plant import PlantError
 from stiction_ros.sim.sources import SourceError
-import yaml
-
-
-def parse_set(items):
-    """Turn ``['valve.S=7', 'valve.model=kano']`` into ``{'valve.S': 7, ...}``."""
-    out = {}
-    for item in items or ():
-        key, sep, value = item.partition('=')
-        if not sep or not key:
-            raise ConfigError(f'--set {item!r}: expected KEY=VALUE, e.g. valve.S=7')
-        out[key] = yaml.safe_load(value)
-    return out
 
 
 def _progress(done, total):
@@ -38,7 +27,8 @@ def _progress(done, total):
 def main(argv=None):
     """Run the command; return the process exit code."""
     ap = argparse.ArgumentParser(prog='stiction-sim', description=__doc__.split('\n')[0])
-    ap.add_argument('config', help='loop description (YAML), e.g. config/concentration_loop.yaml')
+    ap.add_argument('config', help='loop description (YAML): a path, or the name of a '
+                    'shipped file, e.g. concentration_loop.yaml')
     ap.add_argument('--case', help='a case from the file\'s "cases" section')
     ap.add_argument('--duration', type=float, help='override the duration, s')
     ap.add_argument('--set', action='append', metavar='KEY=VALUE',
@@ -47,7 +37,7 @@ def main(argv=None):
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
     try:
-        cfg = load_loop(args.config, args.case, parse_set(args.set))
+        cfg = load_loop(resolve_config(args.config), args.case, parse_overrides(args.set))
         show = not args.quiet and sys.stderr.isatty()
         data = simulate_loop(cfg, args.duration, _progress if show else None)
     except (ConfigError, ModelError, PlantError, SourceError) as err:

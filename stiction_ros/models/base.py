@@ -85,6 +85,7 @@ class ValveModel:
         values.update(params)
         self._params = self._validate(values)
         self._y0: float | None = None
+        self._u_rest: float | None = None
         self.state: Floats | None = None
         self._on_params_changed()
 
@@ -131,28 +132,46 @@ class ValveModel:
         return f'{type(self).__name__}({args})'
 
     # -- simulation --------------------------------------------------------
-    def reset(self, y0: float | None = None) -> None:
+    def reset(self, y0: float | None = None, u_rest: float | None = None) -> None:
         """
         Forget the history; the next sample starts the valve at rest.
 
-        The valve rests at ``y0`` (% of travel) or, if None, at the first
-        input it sees, with no friction force stored: breaking away in either
-        direction then takes the static band, not S.
+        The start-up convention of :meth:`step`: the valve has rested at ``y0``
+        (output units) under the input ``u_rest``, with no friction force
+        stored, so its first input is a change from ``u_rest`` and moves it as
+        soon as that change exceeds the band, as in the chapter's models.
+        ``u_rest`` defaults to the input that holds the valve at ``y0``
+        (:meth:`rest_input`; ``y0`` itself for a valve in % of travel).  With
+        ``y0`` None the valve rests at its first input.
         """
         self._y0 = None if y0 is None else check_finite('y0', y0, 0.0, 100.0)
+        if u_rest is not None:
+            self._u_rest = check_finite('u_rest', u_rest)
+        else:
+            self._u_rest = None if self._y0 is None else self.rest_input(self._y0)
         self.state = None
+
+    def rest_input(self, y0: float) -> float:
+        """Return the input under which the valve rests at output ``y0``."""
+        return y0
 
     def step(self, u: float) -> float:
         """Advance one sample with input ``u`` and return the new position."""
         x = check_finite('valve input', u)
         if self.state is None:
-            self.state = self._new_state(x)
+            self.state = self._new_state(x if self._u_rest is None else self._u_rest)
         y = np.empty(1)
         self._run(np.array([x]), y, self.state)
         return float(y[0])
 
     def simulate(self, u: ArrayLike, y0: float | None = None) -> Floats:
-        """Reset, run the whole input array and return positions of the same length."""
+        """
+        Reset, run the whole input array and return positions of the same length.
+
+        A record starts with the valve at rest at ``y0`` (default: ``u[0]``)
+        under its first input ``u[0]``: what force a recorded valve had
+        stored when the record began is unknown, and none is assumed.
+        """
         return self._simulate(u, y0, self._run)
 
     def simulate_reference(self, u: ArrayLike, y0: float | None = None) -> Floats:

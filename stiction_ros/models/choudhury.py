@@ -53,6 +53,12 @@ class Choudhury(ValveModel):
     def _to_percent(self, u: float) -> float:
         return ma_to_percent(u) if self._ma_in else u
 
+    def rest_input(self, y0: float) -> float:
+        """Return the input (its units) that holds the stem where the output is ``y0``."""
+        flow = ma_to_percent(y0) if self._ma_out else y0
+        pos = invert_characteristic(self._char, flow, self._params['rangeability'])
+        return percent_to_ma(pos) if self._ma_in else pos
+
     def _initial_state(self, u0: float, y0: float | None) -> list[float]:
         x0 = self._to_percent(u0)
         if y0 is None:

@@ -399,6 +399,12 @@ class Physical(ValveModel):
         return None if self.state is None else bool(self.state[S_STUCK] > 0.5)
 
     # -- kernel -------------------------------------------------------------
+    def rest_input(self, y0: float) -> float:
+        """Return the input (%) whose pressure balances the spring with the stem at ``y0``."""
+        pr = self._params
+        p = (pr['k'] * y0 / 100.0 * pr['x_max'] + pr['F0']) / pr['A']
+        return min(max((p - pr['p_min']) / (pr['p_max'] - pr['p_min']) * 100.0, 0.0), 100.0)
+
     def _initial_state(self, u0: float, y0: float | None) -> Floats:
         pr = self._params
         pc = self.p_cmd(u0)

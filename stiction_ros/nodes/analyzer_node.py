@@ -3,7 +3,8 @@ analyzer node: analyse one recording, write the report, publish the verdict once
 
     ros2 run stiction_ros analyzer --ros-args -p input:=out/demo_bag -p report:=report.json
 
-The verdict goes to ``/diagnostics`` as one ``diagnostic_msgs/DiagnosticArray``
+The verdict goes to ``diagnostics`` (``/diagnostics``, or ``/ns/diagnostics``
+in a namespace) as one ``diagnostic_msgs/DiagnosticArray``
 (reliable, transient local, so a monitor started a little later still gets
 it): level OK (no stiction), WARN (stiction, or the data are inconclusive),
 ERROR (stiction with apparent S of at least ``error_S`` %, or an input that
@@ -82,7 +83,8 @@ class AnalyzerNode(Node):
     def __init__(self):
         super().__init__('analyzer')
         self.values = declare(self, self.PARAMS)
-        self.pub = self.create_publisher(DiagnosticArray, '/diagnostics', LATCHED)
+        # Relative, as the loop nodes': /diagnostics unless run in a loop's namespace.
+        self.pub = self.create_publisher(DiagnosticArray, 'diagnostics', LATCHED)
         self.finished = Future()
         self.code = self._analyse()
         self.create_timer(max(self.values['linger'], 0.01), self._done)

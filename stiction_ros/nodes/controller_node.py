@@ -2,43 +2,60 @@
 ``controller`` node: PI(D) on ``pv`` toward the set point, or an open-loop OP source.
 
 Publishes ``op`` and ``sp`` once per sample.  The set point is a constant
-(``setpoint``) or a profile (``setpoint_profile``, YAML such as
-``{type: steps, steps: [[0, 0], [10, 1]]}``); whichever was set last is in
-force, as when an operator types a set point over a running program.  In
-``open_loop`` mode OP comes from ``op`` or ``op_profile`` the same way.
-Switching back to ``closed_loop`` is bumpless: the PI starts from the OP it
-was putting out.
+(``setpoint``) or a profile: one typed parameter per key of its source
+(:mod:`stiction_ros.sim.profile_params`), ``setpoint_profile.type`` (``steps``,
+``sine``, ...; ``''``: none) and its keys, such as ``setpoint_profile.steps``
+(one flat list ``[t0, v0, t1, v1, ...]``).  Whichever was set last is in
+force, as when an operator types a set point over a running program: setting
+``setpoint`` sets ``setpoint_profile.type`` to ``''`` with it, and setting a
+profile parameter puts the profile in force (if it has a type).  A value set
+to what it is changes nothing, so loading a file again, or a dump of the
+node, leaves the loop as it is.  In ``open_loop`` mode OP comes from ``op``
+or ``op_profile.*`` the same way.  Switching back to ``closed_loop`` is
+bumpless: the PI starts from the OP it was putting out.
 
 Example::
 
     ros2 run stiction_ros controller --ros-args -p Kc:=0.2 -p Ti:=10.0
     ros2 param set /controller setpoint 2.0
+    ros2 param set /controller setpoint_profile.steps "[0.0, 2.0, 600.0, 3.0]"
+    ros2 param set /controller setpoint_profile.type steps
 """
 
 import sys
 
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode
 from stiction_ros.sim.controller import PID
-from stiction_ros.sim.sources import Constant, make_source, SourceError, SOURCES
-import yaml
+from stiction_ros.sim.profile_params import check_keys, key_defaults, KEYS, PAIRS_RULE
+from stiction_ros.sim.profile_params import profile_spec, PROFILE_TYPES
+from stiction_ros.sim.sources import make_source, SourceError
 
-PROFILE_RULE = ('empty, a number, or a YAML mapping with type: one of ' + ', '.join(SOURCES)
-                + " and that type's keys; anything else is rejected with the reason")
 GAINS = ('Kc', 'Ti', 'Td', 'N', 'op_min', 'op_max', 'action')
+# Each constant and the prefix of its profile's parameters.
+PROFILES = {'setpoint': 'setpoint_profile', 'op': 'op_profile'}
+RULES = {'steps': PAIRS_RULE, 'file': 'a CSV file, or empty',
+         'column': 'a column name of file', 'time_column': 'a column name of file'}
 
 
-def parse_source(text, value, where):
-    """Return the source described by YAML ``text``, or a constant ``value`` if empty."""
-    if not text.strip():
-        return Constant(value)
-    try:
-        spec = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise SourceError(f'{where}: not valid YAML: {err}') from None
-    return make_source(spec, where)
+def profile_params(prefix, what):
+    """Return the :class:`Param` of every key of a profile under ``prefix``, ``type`` last."""
+    out = []
+    for key, default in key_defaults().items():
+        low, high, text = KEYS[key]
+        out.append(Param(f'{prefix}.{key}', default, f'{what} profile: {text}.', low, high,
+                         constraint=RULES.get(key, '')))
+    return out + [Param(f'{prefix}.type', '', f'{what} profile: its source, whose keys are '
+                        f'the other {prefix}.* parameters; "": none, the constant is in force.',
+                        choices=PROFILE_TYPES)]
+
+
+def profile_values(values, prefix):
+    """Return the values of the profile parameters under ``prefix``, keyed without it."""
+    return {k[len(prefix) + 1:]: v for k, v in values.items() if k.startswith(prefix + '.')}
 
 
 class ControllerNode(SampledNode):
@@ -49,7 +66,7 @@ class ControllerNode(SampledNode):
     def __init__(self):
         super().__init__('controller', 0.5, [
             Param('mode', 'closed_loop', 'closed_loop: PI(D) on pv; open_loop: OP from '
-                  'op / op_profile. Switching to closed_loop is bumpless.',
+                  'op / op_profile.*. Switching to closed_loop is bumpless.',
                   choices=('closed_loop', 'open_loop')),
             Param('Kc', 1.0, 'Controller gain (OP % per PV unit).', -1e6, 1e6),
             Param('Ti', 0.0, 'Integral time, s (0: no integral action).', 0.0, 1e9),
@@ -58,25 +75,24 @@ class ControllerNode(SampledNode):
             Param('op_min', 0.0, 'Lowest OP, %.', -1e6, 1e6),
             Param('op_max', 100.0, 'Highest OP, %.', -1e6, 1e6),
             Param('bias', 50.0, 'OP when the error and the integral are zero, %. '
-                  'Fixed for the run (changing it would bump OP).', -1e6, 1e6, read_only=True),
+                  'Fixed for the run (changing it would bump OP).', -1e6, 1e6, fixed=True),
             Param('action', 'reverse', 'reverse: OP rises when PV is below SP; direct: falls.',
                   choices=('reverse', 'direct')),
-            Param('setpoint', 0.0, 'Constant set point; setting it overrides a profile.',
-                  -1e12, 1e12),
-            Param('setpoint_profile', '', 'Set-point profile as YAML, e.g. '
-                  '{type: steps, steps: [[0, 0], [10, 1]]}; empty: use setpoint.',
-                  constraint=PROFILE_RULE),
-            Param('op', 50.0, 'Open-loop OP, %; setting it overrides op_profile.', -1e6, 1e6),
-            Param('op_profile', '', 'Open-loop OP profile as YAML, e.g. '
-                  '{type: sine, offset: 50, amplitude: 10, period: 200}; empty: use op.',
-                  constraint=PROFILE_RULE),
+            Param('setpoint', 0.0, 'Constant set point. Setting it puts it in force: '
+                  'setpoint_profile.type becomes "" with it.', -1e12, 1e12),
+            *profile_params('setpoint_profile', 'Set-point'),
+            Param('op', 50.0, 'Open-loop OP, %. Setting it puts it in force: op_profile.type '
+                  'becomes "" with it.', -1e6, 1e6),
+            *profile_params('op_profile', 'Open-loop OP'),
         ])
         v = self.values
         self.check_startup()
         self.pid = PID(sample_time=self.sample_time, bias=v['bias'],
                        **{k: v[k] for k in GAINS})
-        self.sp_source = parse_source(v['setpoint_profile'], v['setpoint'], 'setpoint_profile')
-        self.op_source = parse_source(v['op_profile'], v['op'], 'op_profile')
+        # The source of each constant-or-profile, and the mapping it was built from.
+        self.in_force = {const: self._spec(const, v) for const in PROFILES}
+        self.sp_source = make_source(self.in_force['setpoint'], 'setpoint_profile')
+        self.op_source = make_source(self.in_force['op'], 'op_profile')
         self.pv = None
         self.op_pub = self.create_publisher(Float64, 'op', DATA_QOS)
         self.sp_pub = self.create_publisher(Float64, 'sp', DATA_QOS)
@@ -85,32 +101,53 @@ class ControllerNode(SampledNode):
         self.start()
         self.get_logger().info(f'{v["mode"]} Kc={v["Kc"]} Ti={v["Ti"]} at {self.sample_time} s')
 
+    @staticmethod
+    def _spec(const, values):
+        """Return the source mapping in force for ``const`` (its profile, or the constant)."""
+        prefix = PROFILES[const]
+        spec = profile_spec(profile_values(values, prefix), prefix)
+        return spec if spec is not None else {'type': 'constant', 'value': values[const]}
+
+    def expand(self, params):
+        """Set ``setpoint`` (``op``) alone, and its profile's type becomes '': last set wins."""
+        names = {p.name for p in params}
+        return params + [Parameter(f'{prefix}.type', Parameter.Type.STRING, '')
+                         for const, prefix in PROFILES.items()
+                         if const in names and f'{prefix}.type' not in names
+                         and self.values[f'{prefix}.type']]
+
     def check(self, values, changes):
         """Return why the gains or profiles would be invalid, or None."""
         try:
             PID(sample_time=self.sample_time, bias=values['bias'],
                 **{k: values[k] for k in GAINS})
-            for key, const in (('setpoint_profile', 'setpoint'), ('op_profile', 'op')):
-                if key in changes:
-                    parse_source(values[key], values[const], key)
+            for const, prefix in PROFILES.items():
+                mine = profile_values(changes, prefix)
+                if mine or const in changes:
+                    reason = check_keys(profile_values(values, prefix), mine, prefix)
+                    if reason is not None:
+                        return reason
+                    make_source(self._spec(const, values), prefix)
         except (ValueError, SourceError) as err:
             return str(err)
         return None
 
     def apply(self, changes):
-        """Retune, switch mode bumplessly, or replace the set point / OP source."""
+        """Retune, switch mode bumplessly, or put a new set point / OP source in force."""
         v = self.values
         gains = {k: v[k] for k in GAINS if k in changes}
         if gains:
             self.pid.set_gains(**gains)
-        if 'setpoint' in changes:
-            self.sp_source = Constant(v['setpoint'])
-        if 'setpoint_profile' in changes:
-            self.sp_source = parse_source(v['setpoint_profile'], v['setpoint'], 'setpoint_profile')
-        if 'op' in changes:
-            self.op_source = Constant(v['op'])
-        if 'op_profile' in changes:
-            self.op_source = parse_source(v['op_profile'], v['op'], 'op_profile')
+        for const, prefix in PROFILES.items():
+            spec = self._spec(const, v)
+            # Only a change: a profile set again as it is keeps running where it is.
+            if spec != self.in_force[const]:
+                self.in_force[const] = spec
+                source = make_source(spec, prefix)
+                if const == 'setpoint':
+                    self.sp_source = source
+                else:
+                    self.op_source = source
         if changes.get('mode') == 'closed_loop':
             self.pid.reset(op=self.pid.op, pv=self.pv)
 

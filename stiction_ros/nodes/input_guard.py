@@ -3,9 +3,10 @@ What a loop node knows about the health of its input: rejected values and stalen
 
 Plain Python (no rclpy), so the rules are testable alone; ``sampled.py`` wires
 it to the subscription callbacks and publishes :meth:`InputGuard.status` on
-``/diagnostics``.  A value is rejected when it is not finite or its magnitude
-exceeds ``limit`` (a percent signal of 1e300 is as wrong as a NaN); the node
-then holds its last good value.  The input is stale when no good value has
+``diagnostics`` (in the loop's namespace; ``/diagnostics`` without one).  A
+value is rejected when it is not finite or its magnitude exceeds ``limit`` (a
+percent signal of 1e300 is as wrong as a NaN); the node then holds its last
+good value.  The input is stale when no good value has
 arrived for ``stale_after`` seconds.  A sample at which the node acted
 without a new value since the previous sample (a message lost or late) is
 *held*: counted, and a WARN until a report finds no new one.

@@ -11,11 +11,12 @@ point) is fixed for a run; ``load`` and ``noise_std`` can change live.
 import sys
 
 from std_msgs.msg import Float64
+from stiction_ros.errors import SourceError
 from stiction_ros.nodes.params import Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS, SampledNode, StartupError
 from stiction_ros.sim.plant import PlantError, TransferFunctionPlant
-import yaml
+from stiction_ros.sim.profile_params import pairs
 
 # Samples the plant catches up at once after the clock skipped ahead.
 MAX_CATCH_UP = 10000
@@ -30,18 +31,20 @@ class PlantNode(SampledNode):
         fixed = ' Fixed for the run (the plant state depends on it).'
         super().__init__('plant', 0.25, [
             Param('num', [3.0], 'Numerator coefficients of the transfer function, '
-                  'highest power of s first.' + fixed, read_only=True),
+                  'highest power of s first.' + fixed, fixed=True,
+                  constraint='a non-empty list of finite numbers'),
             Param('den', [10.0, 1.0], 'Denominator coefficients, highest power of s first.'
-                  + fixed, read_only=True),
-            Param('delay', 10.0, 'Dead time, s.' + fixed, 0.0, 1e6, read_only=True),
-            Param('mv0', 50.0, 'MV at the operating point, %.' + fixed, -1e6, 1e6,
-                  read_only=True),
-            Param('pv0', 0.0, 'PV at the operating point.' + fixed, -1e12, 1e12,
-                  read_only=True),
-            Param('disturbance_steps', '[]', 'Load steps on PV as YAML [[time_s, size], ...].'
-                  + fixed, read_only=True),
+                  + fixed, fixed=True,
+                  constraint='a list of finite numbers, at least as long as num'),
+            Param('delay', 10.0, 'Dead time, s.' + fixed, 0.0, 1e6, fixed=True),
+            Param('mv0', 50.0, 'MV at the operating point, %.' + fixed, -1e6, 1e6, fixed=True),
+            Param('pv0', 0.0, 'PV at the operating point.' + fixed, -1e12, 1e12, fixed=True),
+            Param('disturbance_steps', [], 'Load steps added to PV from their time on, as '
+                  '[time_s, size] pairs in one flat list; []: none.' + fixed, fixed=True,
+                  constraint='one flat list of [time, size] pairs: [t0, s0, t1, s1, ...], '
+                  'e.g. [300.0, 2.0, 900.0, -1.0]; [] for none'),
             Param('seed', 0, 'Seed of the measurement noise.' + fixed, 0, 2**31 - 1,
-                  read_only=True),
+                  fixed=True),
             Param('noise_std', 0.0, 'Standard deviation of the PV measurement noise.',
                   0.0, 1e6),
             Param('load', 0.0, 'Constant load added to PV, from the next sample on.',
@@ -49,12 +52,12 @@ class PlantNode(SampledNode):
         ])
         v = self.values
         try:
-            steps = yaml.safe_load(v['disturbance_steps']) or []
+            steps = pairs(v['disturbance_steps'], 'disturbance_steps')
             self.plant = TransferFunctionPlant(
                 list(v['num']), list(v['den']), delay=v['delay'], sample_time=self.sample_time,
                 mv0=v['mv0'], pv0=v['pv0'], noise_std=v['noise_std'], disturbance_steps=steps,
                 seed=v['seed'])
-        except (PlantError, ValueError, TypeError, yaml.YAMLError) as err:
+        except (PlantError, SourceError, ValueError, TypeError) as err:
             raise StartupError(f'plant: {err}') from None
         self.mv = None
         self._k = None

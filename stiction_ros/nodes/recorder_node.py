@@ -19,7 +19,9 @@ small queue until the next ``/clock`` arrives, since that one may have been
 sent before it.
 
 The open chunk goes to disk every ``flush_period`` wall seconds, so a
-SIGKILL loses at most that much; SIGINT/SIGTERM finish the file.
+SIGKILL loses at most that much.  SIGINT/SIGTERM finish the file, with every
+message that had reached the recorder's queues, and further signals cannot
+interrupt that (``run.py``).
 
 Disk space: the recorder refuses to start with less than ``min_free_mb``
 free where the bag goes, and finishes the bag cleanly (summary, index,
@@ -51,6 +53,7 @@ from stiction_ros.nodes.sampled import StartupError
 
 # Most messages one callback takes from its topic's queue before yielding to the executor.
 DRAIN_LIMIT = 1000
+CLOCK_DEPTH = 1000
 _TYPE_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*/msg/[A-Za-z][A-Za-z0-9_]*$')
 
 
@@ -117,11 +120,14 @@ class RecorderNode(Node):
         self.wanted = [self.resolve_topic_name(t) for t in v['topics'] if t]
         self._clock_wall, self._clock_sim, self._pending = [], [], []
         self._sim = self.get_parameter('use_sim_time').value
+        self._clock_sub = None
         if self._sim:
-            self.create_subscription(RosClock, '/clock', self._on_clock, QoSProfile(
-                depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+            self._clock_sub = self.create_subscription(
+                RosClock, '/clock', self._on_clock,
+                QoSProfile(depth=CLOCK_DEPTH, reliability=ReliabilityPolicy.RELIABLE))
         self.subs = {}
         self._unflushed = 0
+        self._closed = False
         self.stopped = None     # why recording stopped early, if it did
         self.not_recorded = 0
         self.publishers_of, self.last_seq, self.gaps = {}, {}, {}
@@ -200,30 +206,51 @@ class RecorderNode(Node):
             f'{self.stopped}; recording stopped after {self.writer.message_count} messages. '
             f'What reached the disk is recovered by: stiction-bag repair {self.writer.directory}')
 
-    def _callback(self, name):
-        def store(data, info):
-            self._count_sequence(name, info.get('publication_sequence_number'))
-            sent = info['source_timestamp']
-            if not self._sim:
-                self._write(name, data, sent, info['received_timestamp'])
-            elif self._pending or not self._clock_wall or sent >= self._clock_wall[-1]:
-                self._pending.append((name, data, sent))
-            else:
-                self._write(name, data, sent)
+    def _store(self, name, data, info):
+        self._count_sequence(name, info.get('publication_sequence_number'))
+        sent = info['source_timestamp']
+        if not self._sim:
+            self._write(name, data, sent, info['received_timestamp'])
+        elif self._pending or not self._clock_wall or sent >= self._clock_wall[-1]:
+            self._pending.append((name, data, sent))
+        else:
+            self._write(name, data, sent)
 
+    def _callback(self, name):
         def on_message(data, info):
-            store(data, info)
+            self._store(name, data, info)
             # Drain what else has arrived on this topic now: the executor spends tens
             # of microseconds per wake-up, taking a message costs a few.  Bounded, so
             # the flush and /clock callbacks still run under a flood.
-            sub = self.subs.get(name)
-            for _ in range(DRAIN_LIMIT if sub is not None else 0):
-                with sub.handle:
-                    got = sub.handle.take_message(sub.msg_type, True)
-                if got is None:
-                    break
-                store(*got)
+            self._take(name, DRAIN_LIMIT)
         return on_message
+
+    def _take(self, name, limit):
+        """Store up to ``limit`` messages waiting in topic ``name``'s queue."""
+        sub = self.subs.get(name)
+        for _ in range(limit if sub is not None else 0):
+            with sub.handle:
+                got = sub.handle.take_message(sub.msg_type, True)
+            if got is None:
+                break
+            self._store(name, *got)
+
+    def _drain(self):
+        """Store every message that reached a queue before the stop and was not taken yet."""
+        # At a stop the spin ends with the last messages of the loop still in the DDS
+        # queues (all nodes of a launch get the signal at once).  Taking works after the
+        # context is shut down, as long as the subscription exists.  /clock first: the
+        # send stamps of the messages map through it.  Bounded by the queue depths, so
+        # that a publisher that goes on sending cannot keep the stop waiting.
+        clock = self._clock_sub
+        for _ in range(CLOCK_DEPTH if clock is not None else 0):
+            with clock.handle:
+                got = clock.handle.take_message(clock.msg_type, False)
+            if got is None:
+                break
+            self._on_clock(*got)
+        for name in list(self.subs):
+            self._take(name, self.values['depth'])
 
     def _count_sequence(self, name, seq):
         # A publisher numbers its messages: a jump is a message lost on the way, and a
@@ -268,7 +295,11 @@ class RecorderNode(Node):
             self._fail(err)
 
     def close(self):
-        """Finish the bag; called on shutdown (SIGINT/SIGTERM)."""
+        """Store what was received, finish the bag and report; only the first call acts."""
+        if self._closed:
+            return
+        self._closed = True
+        self._drain()
         for item in self._pending:
             self._write(*item)
         self._pending = []

@@ -1,33 +1,108 @@
 """
 Entry point shared by every node executable: init, spin, clean shutdown.
 
-SIGINT and SIGTERM end the spin through rclpy's signal handlers; the node's
-``close()`` (the recorder finalises its bag there) runs before the context is
-shut down.  A node that cannot start prints one line saying why and exits 2.
+The first SIGINT or SIGTERM ends the spin: rclpy's signal handlers shut the
+context down and wake the executor.  The shutdown then runs to its end
+whatever signals follow: the node's ``close()`` (the recorder finalises its
+bag there), ``destroy_node()``, the context shutdown, and exit status 0.
+
+Python's own SIGINT handler would raise KeyboardInterrupt wherever the signal
+lands: inside a callback halfway through a write, or inside ``close()`` when
+``ros2 launch`` forwards its SIGINT right after the one the whole process
+group got from the terminal or a supervisor (the bag was left unreadable and
+the process died by the signal).  So :func:`run` puts a handler in its place
+that only notes the signal (rclpy's handlers chain to it), and ignores both
+signals from the first step of the shutdown on.  A signal during start-up is
+noted too, and the node stops as soon as it exists.
+
+A node that cannot start prints one line saying why and exits 2.
 """
 
 import gc
+import os
+import signal
 import sys
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers
+from rclpy.signals import SignalHandlerOptions, uninstall_signal_handlers
 from stiction_ros.models.base import ModelError
 from stiction_ros.nodes.sampled import StartupError
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopRequest:
+    """A signal handler that notes the first SIGINT/SIGTERM instead of raising."""
+
+    def __init__(self):
+        self.signum = None
+
+    def __call__(self, signum, frame):
+        """Note the signal; ending the spin is the work of rclpy's handler, which chains here."""
+        if self.signum is None:
+            self.signum = signum
+
+
+def ignore_stop_signals():
+    """Ignore SIGINT and SIGTERM from now on; calling it again changes nothing."""
+    # rclpy's C handler goes first: it would go on shutting contexts down and chaining
+    # to the handler it found, and uninstalling it later would put that one back.  Only
+    # if installed: rclpy's uninstall sets SIG_DFL for a moment when it has nothing to
+    # restore, and a signal in that moment would kill the process.
+    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+        uninstall_signal_handlers()
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+
+
+def wants_help(args=None):
+    """Return True if ``-h`` or ``--help`` comes before any ``--ros-args``."""
+    argv = sys.argv[1:] if args is None else list(args)[1:]
+    if '--ros-args' in argv:
+        argv = argv[:argv.index('--ros-args')]
+    return '-h' in argv or '--help' in argv
+
+
+def help_text(factory, prog):
+    """Return the executable's help: its module's docstring and how to pass ROS arguments."""
+    doc = (sys.modules[factory.__module__].__doc__ or '').strip()
+    return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE] [--params-file FILE] '
+            '[-r FROM:=TO] [--log-level LEVEL]]\n\n'
+            f'{doc}\n\nParameters: `ros2 param list` and `ros2 param describe` on the '
+            'running node show each one with its range and rule (README, "Parameters").\n'
+            'Exit status: 0 after a clean stop (SIGINT/SIGTERM), 2 if the node cannot start.')
 
 
 def run(factory, args=None, prog='node'):
     """
     Create the node with ``factory()`` and spin it until shutdown; return an exit code.
 
+    ``factory`` may return several nodes, spun on one executor (composition).
     A node with a ``finished`` future is spun until it completes, and its
-    result is the exit code.
+    result is the exit code (0 when a signal stopped it first).
+    ``-h``/``--help`` prints :func:`help_text` and starts nothing.
     """
-    rclpy.init(args=args)
+    if wants_help(args):
+        try:
+            print(help_text(factory, prog), flush=True)
+        except BrokenPipeError:
+            # Read by `head` or a pager that quit: nothing more to say.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    stop = StopRequest()
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, stop)
+    # rclpy's handlers would shut the context down under a node still being built, whose
+    # next create_* call would then fail: they go in once the node exists.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = factory()
     except (StartupError, ModelError, ParameterException, ValueError) as err:
+        ignore_stop_signals()
         print(f'{prog}: error: {err}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
@@ -36,14 +111,27 @@ def run(factory, args=None, prog='node'):
     # way, so a collection of the few short-lived objects of a sample stays short.
     gc.collect()
     gc.freeze()
+    # Installed after the node is built, so they chain to ``stop``; a signal that came
+    # before this line is in ``stop`` and skips the spin, one after it ends the spin.
+    install_signal_handlers(SignalHandlerOptions.ALL)
     try:
         finished = getattr(node, 'finished', None)
-        if finished is None:
+        if stop.signum is not None:
+            pass                # stopped during start-up
+        elif isinstance(node, list):
+            executor = SingleThreadedExecutor()
+            for one in node:
+                executor.add_node(one)
+            executor.spin()
+        elif finished is None:
             rclpy.spin(node)
         else:
             rclpy.spin_until_future_complete(node, finished)
-            code = finished.result() if finished.done() else 1
-    except (KeyboardInterrupt, ExternalShutdownException):
+            if finished.done():
+                code = finished.result()
+            elif stop.signum is None:
+                code = 1    # the context was shut down, and not by a signal
+    except ExternalShutdownException:
         pass
     except RCLError:
         # A callback that was running when SIGINT/SIGTERM shut the context down fails
@@ -51,9 +139,26 @@ def run(factory, args=None, prog='node'):
         if rclpy.ok():
             raise
     finally:
-        close = getattr(node, 'close', None)
-        if close is not None:
-            close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        ignore_stop_signals()
+        nodes = node if isinstance(node, list) else [node]
+        try:
+            _close_all(nodes)
+        finally:
+            for one in nodes:
+                one.destroy_node()
+            rclpy.try_shutdown()
     return code
+
+
+def _close_all(nodes):
+    """Close every node (the recorder finalises its bag), even if one before it fails."""
+    failed = None
+    for one in nodes:
+        close = getattr(one, 'close', None)
+        try:
+            if close is not None:
+                close()
+        except Exception as err:  # noqa: B902 - the others still close; it is raised after
+            failed = failed or err
+    if failed is not None:
+        raise failed

@@ -56,7 +56,8 @@ from std_msgs.msg import Float64
 from stiction_ros.errors import StartupError
 from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
-from stiction_ros.nodes.params import check_choices, declare, Param
+from stiction_ros.nodes.params import check_choices, check_fixed, coerce, declare, Param
+from stiction_ros.nodes.params import fixed_reason, plain
 
 SLOTS = 4
 # Reliable with room for a few seconds of backlog: a slow subscriber (the
@@ -74,16 +75,16 @@ class SampledNode(Node):
         super().__init__(name)
         common = [
             Param('sample_time', 1.0, 'Sample time of the loop, s. Fixed for the run.',
-                  1e-4, 1e4, read_only=True),
+                  1e-4, 1e4, fixed=True),
             Param('phase', float(phase),
                   'When in each sample this node acts, as a fraction of sample_time '
                   '(plant 0.25, controller 0.5, valve 0.75). Fixed for the run.',
-                  0.0, 0.75, read_only=True, step=0.25),
+                  0.0, 0.75, fixed=True, step=0.25),
             Param('realtime_priority', 0,
                   'On wall time, run this process under SCHED_FIFO at this priority (Linux, '
                   'needs CAP_SYS_NICE; without it the node warns and keeps the normal '
                   'scheduler). 0: the normal scheduler. Fixed for the run.',
-                  0, 98, read_only=True),
+                  0, 98, fixed=True),
             Param('input_limit', 1e6, 'Input values beyond +-this (or not finite) are '
                   'rejected and the last good value held.', 1.0, 1e300),
             Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
@@ -95,13 +96,13 @@ class SampledNode(Node):
             Param('inject_jitter', 0.0, 'Fault injection: random extra delay of an input '
                   'message, uniform up to this, s (messages stay in order).', 0.0, 60.0),
             Param('inject_seed', 0, 'Seed of the injected faults. Fixed for the run.', 0,
-                  2**31 - 1, read_only=True),
+                  2**31 - 1, fixed=True),
             Param('input_wait', 0.5, 'On sim time: wall seconds to wait at the action instant '
                   'for an input of this sample that has not come yet (0: act on what is '
                   "there). Keep it under the sim clock's sync_timeout. Fixed for the run.",
-                  0.0, 60.0, read_only=True),
+                  0.0, 60.0, fixed=True),
             Param('state_file', '', 'File the node writes its state to after every sample and '
-                  'resumes from when restarted ("": none). Fixed for the run.', read_only=True,
+                  'resumes from when restarted ("": none). Fixed for the run.', fixed=True,
                   constraint='a writable file path, or empty'),
         ]
         self.param_specs = common + list(params)
@@ -127,7 +128,8 @@ class SampledNode(Node):
         self._pending = None            # on sim time: the sample waiting for an input
         self.waited = {'samples': 0, 'gave_up': 0}
         self.injected = {'lost': 0, 'delayed': 0}
-        self._diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        # Relative: /diagnostics without a namespace, the loop's own in one.
+        self._diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self._held_pub = self.create_publisher(KeyValue, 'held_inputs', DATA_QOS)
         self.create_timer(1.0, self._publish_diagnostics,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -135,6 +137,9 @@ class SampledNode(Node):
     def start(self):
         """Resume from the state file, register the parameter callbacks, start the timer."""
         self._resume()
+        self.add_pre_set_parameters_callback(lambda ps: self.expand(coerce(self.param_specs, ps)))
+        # rclpy calls on-set callbacks newest first, up to a refusal: this one refuses a
+        # use_sim_time change before the time source's (from Node()) switches the clock.
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._post_set)
         if self._sim:
@@ -446,8 +451,10 @@ class SampledNode(Node):
 
     # -- parameters: validate everything first, then apply ----------------------
     def _on_set(self, params):
-        changes = {p.name: p.value for p in params if p.name in self.values}
-        reason = check_choices(self.param_specs, changes)
+        changes = {p.name: plain(p.value) for p in params if p.name in self.values}
+        sim = [p.value for p in params if p.name == 'use_sim_time' and p.value != self._sim]
+        reason = (fixed_reason('use_sim_time', sim[0]) if sim else check_fixed(
+            self.param_specs, self.values, changes) or check_choices(self.param_specs, changes))
         if reason is None:
             merged = dict(self.values)
             merged.update(changes)
@@ -458,7 +465,7 @@ class SampledNode(Node):
         return SetParametersResult(successful=True)
 
     def _post_set(self, params):
-        changes = {p.name: p.value for p in params if p.name in self.values}
+        changes = {p.name: plain(p.value) for p in params if p.name in self.values}
         if changes:
             self.values.update(changes)
             for guard in self.input_guards.values():
@@ -474,6 +481,10 @@ class SampledNode(Node):
                                                                             self.values)
         if reason is not None:
             raise StartupError(reason)
+
+    def expand(self, params):
+        """Return the parameters to set when ``params`` are set (a pre-set callback)."""
+        return params
 
     def check(self, values, changes):
         """Return why ``values`` (with ``changes`` applied) are invalid, or None."""

@@ -19,6 +19,12 @@ input.
 Before it starts, the clock can wait until given topics have enough
 subscribers (``wait_for: ['op=2', 'mv=2']``), so that no node misses the start.
 It exits after ``stop_at`` seconds of sim time (0: never).
+
+A namespaced loop runs on its own clock topic: ``loop`` (and the launch file)
+remaps ``/clock`` to ``<namespace>/clock`` for this node and for the time source
+of every node of the loop, so that loops on one graph keep their own time.  A
+``wait_for`` entry resolves with that remapping (``'/clock=4'`` counts the
+subscribers of ``/ns/clock``).
 """
 
 import sys

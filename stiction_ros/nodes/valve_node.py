@@ -54,7 +54,7 @@ class ValveNode(SampledNode):
                   choices=tuple(MODELS)),
             Param('initial_position', 50.0,
                   'Position the valve rests at before its first OP, % of travel. '
-                  'Used at start-up only.', 0.0, 100.0, read_only=True),
+                  'Fixed for the run: used at start-up only.', 0.0, 100.0, fixed=True),
         ] + self.model_specs)
         self.check_startup()
         warm_up()
@@ -90,8 +90,9 @@ class ValveNode(SampledNode):
         if 'model' in changes and name != self.model.name:
             position = self.model.position
             self.model = self._build(name, self.values)
+            # At rest under the OP in force: a switch alone must not move the valve.
             self.model.reset(y0=position if position is not None
-                             else self.values['initial_position'])
+                             else self.values['initial_position'], u_rest=self.op)
             return
         mine = {k: v for k, v in changes.items() if k in self.model.PARAMS}
         if mine:
@@ -109,9 +110,10 @@ class ValveNode(SampledNode):
         elif snap.get('state'):
             self.get_logger().warning(f'the saved valve ran {snap.get("model")!r}; '
                                       f'{self.model.name} starts at its position, at rest')
-            self.model.reset(y0=min(max(float(snap['state'][0]), 0.0), 100.0))
         op = state.get('op')
         self.op = None if op is None else float(op)
+        if snap.get('model') != self.model.name and snap.get('state'):
+            self.model.reset(y0=min(max(float(snap['state'][0]), 0.0), 100.0), u_rest=self.op)
 
     def on_input(self, topic, value):
         """Use the newest valid OP."""

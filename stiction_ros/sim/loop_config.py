@@ -56,6 +56,20 @@ def deep_merge(base, over):
     return out
 
 
+def parse_overrides(items):
+    """Turn ``['valve.S=7', 'valve.model=kano']`` into ``{'valve.S': 7, ...}`` (YAML values)."""
+    out = {}
+    for item in items or ():
+        key, sep, value = item.partition('=')
+        if not sep or not key:
+            raise ConfigError(f'--set {item!r}: expected KEY=VALUE, e.g. valve.S=7')
+        try:
+            out[key] = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise ConfigError(f'--set {item!r}: the value is not valid YAML') from None
+    return out
+
+
 def load_loop(path, case=None, overrides=None):
     """Read a loop file, merge ``case`` and dotted ``overrides``, validate, return a dict."""
     try:

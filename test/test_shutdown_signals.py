@@ -1,0 +1,343 @@
+"""
+Stopping a loop as a launch system does: repeated signals spoil neither the bag nor the exit codes.
+
+``ros2 launch`` stopped by a supervisor, by CI or by Ctrl-C: the whole process
+group gets SIGINT, and launch sends each node a second SIGINT of its own
+(issue 21: the second one interrupted the recorder's ``close()``, the MCAP had
+no end magic and four nodes died by the signal).  Here ``group_runner.py``
+plays launch: the recorder and a wall-time loop (plant, controller, valve)
+run in its process group, which gets two or three signals within 0.3 s,
+without a terminal and as the foreground group of a pseudo-terminal.  Every
+node must exit 0, and the bag must open in three readers and hold every
+message sent before the stop: an in-test subscriber sees the same messages,
+and the send stamps it saw must all be in the bag.
+"""
+
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+from mcap.reader import make_reader
+import numpy as np
+import pytest
+from ros_helpers import MODULES, wait_for
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import get_typestore, Stores
+from std_msgs.msg import Float64
+from stiction_ros.bag.reader import read_bag
+from stiction_ros.nodes.sampled import DATA_QOS
+from stiction_ros.resources import config_file
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+TS = 0.05                       # s: the loop's sample time, on wall time
+TOPICS = ('sp', 'op', 'mv', 'pv')
+RECORD_FOR = 1.0                # s of recording before the stop
+# A message sent this long before the stop must be in the bag; one sent later may still
+# be on its way when the recorder finishes (the recorder takes what has arrived).
+IN_FLIGHT = 0.1
+RUNNER = Path(__file__).with_name('group_runner.py')
+NODES = {
+    'recorder': {'topics': list(TOPICS) + ['held_inputs'], 'chunk_size': 4096,
+                 'flush_period': 0.2},
+    'plant': {'num': '[1.0]', 'den': '[5.0, 1.0]', 'delay': 0.0},
+    'controller': {'Kc': 0.5, 'Ti': 2.0, 'setpoint': 2.0},
+    'valve': {'model': 'kano', 'S': 1.0, 'J': 0.5},
+}
+
+
+def node_argv(name, ns, bag):
+    """Return the command of one node, as launch would run it."""
+    params = dict(NODES[name], output=str(bag)) if name == 'recorder' else dict(
+        NODES[name], sample_time=TS)
+    argv = [sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--ros-args',
+            '-r', f'__ns:={ns}', '-p', 'use_sim_time:=false']
+    for key, value in params.items():
+        value = '[' + ','.join(value) + ']' if isinstance(value, list) else value
+        argv += ['-p', f'{key}:={value}']
+    return argv
+
+
+class Sent:
+    """The send stamps of the loop's messages, as a subscriber in the test saw them."""
+
+    def __init__(self, probe, ns):
+        self.stamps = {t: [] for t in TOPICS}
+        self.subs = [probe.node.create_subscription(
+            Float64, f'{ns}/{t}', lambda _, info, t=t: self.stamps[t].append(
+                info['source_timestamp']), DATA_QOS, raw=True) for t in TOPICS]
+        self.probe = probe
+
+    def close(self):
+        """Stop listening."""
+        for sub in self.subs:
+            self.probe.node.destroy_subscription(sub)
+
+
+def wait_recording(probe, ns, sent, timeout=60.0):
+    """Wait until the recorder subscribes to every loop topic and the loop runs."""
+    def recorder_on_all():
+        return all(any(info.node_name == 'recorder' for info in
+                       probe.node.get_subscriptions_info_by_topic(f'{ns}/{t}')) for t in TOPICS)
+    # Half a second of every topic: a reader that matches a new publisher late misses what
+    # it sent before, so each topic starts at its own time, in the recorder and here.
+    wait_for(lambda: recorder_on_all() and all(len(sent.stamps[t]) > 0.5 / TS for t in TOPICS),
+             timeout, what='the loop running and the recorder subscribed to sp, op, mv, pv')
+
+
+def read_three_ways(bag):
+    """Return ``{topic: send stamps}`` after reading the bag with mcap, rosbags and read_bag."""
+    (mcap,) = bag.glob('*.mcap')
+    with open(mcap, 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None, f'{mcap}: no summary (the file was not finished)'
+        stamps = {}
+        for _, channel, message in reader.iter_messages():
+            stamps.setdefault(channel.topic, []).append(message.publish_time)
+    # A topic subscribed to but never sent on (held_inputs, normally) has a channel only.
+    counts = {channel.topic: summary.statistics.channel_message_counts.get(cid, 0)
+              for cid, channel in summary.channels.items()}
+    assert counts == {t: len(stamps.get(t, ())) for t in counts}
+    counts = {t: n for t, n in counts.items() if n}
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    seen = {}
+    with Reader(bag) as reader:
+        for conn, _, raw in reader.messages():
+            seen.setdefault(conn.topic, []).append(store.deserialize_cdr(raw, conn.msgtype))
+    assert {t: len(m) for t, m in seen.items()} == counts
+
+    ours = read_bag(bag)
+    assert ours.complete, ours.warnings
+    assert {name: t.count for name, t in ours.topics.items() if t.count} == counts
+    for name, t in ours.topics.items():
+        assert list(t.publish_time) == stamps.get(name, [])
+        if name.rsplit('/', 1)[-1] in TOPICS:
+            assert list(t.values()) == [m.data for m in seen[name]]
+    return stamps
+
+
+def check_complete(stamps, sent, ns, stop_ns):
+    """Check that the bag holds every message sent before the stop; return what it measured."""
+    report = {}
+    last = {}
+    for t in TOPICS:
+        bag = np.array(stamps[f'{ns}/{t}'])
+        out = np.array(sent.stamps[t])
+        assert len(bag) >= 0.25 / TS, f'{t}: only {len(bag)} messages recorded'
+        assert np.all(np.diff(bag) > 0), f'{t}: send stamps not increasing'
+        # Every message sent from the first recorded one on, up to the stop, is in the bag.
+        due = out[(out >= bag[0]) & (out < stop_ns - IN_FLIGHT * 1e9)]
+        missing = np.setdiff1d(due, bag)
+        assert len(missing) == 0, f'{t}: {len(missing)} of {len(due)} messages sent before ' \
+            f'the stop are not in the bag'
+        k = bag // int(TS * 1e9)
+        # A gap in the sample numbers is a sample the node skipped (a busy machine): the
+        # test's subscriber got no message of that sample either.
+        gaps = np.flatnonzero(np.diff(k) > 1)
+        assert all(not np.any((out > bag[i]) & (out < bag[i + 1])) for i in gaps), t
+        last[t] = int(k[-1])
+        report[t] = {'recorded': len(bag), 'sent_before_stop': int(np.sum(out < stop_ns)),
+                     'last_ms_before_stop': round((stop_ns - int(bag[-1])) / 1e6, 1),
+                     'samples_skipped_by_node': int(k[-1] - k[0] + 1 - len(np.unique(k)))}
+    # They all stopped within a sample or two of one another.
+    assert max(last.values()) - min(last.values()) <= 2, last
+    return report
+
+
+class Terminal:
+    """A pseudo-terminal whose output is read all the time, as a terminal emulator does."""
+
+    def __init__(self):
+        self.master, self.slave = os.openpty()
+        self.output = bytearray()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        while True:
+            try:
+                data = os.read(self.master, 65536)
+            except OSError:         # EIO: every process on the slave side is gone
+                return
+            if not data:
+                return
+            self.output += data
+
+    def close(self):
+        """Close both ends."""
+        os.close(self.slave)
+        os.close(self.master)
+        self._reader.join(5.0)
+
+
+def run_group(tmp_path, probe, ns, stop, tty=False):
+    """Run recorder and loop in one process group, stop them with ``stop``; check everything."""
+    bag = tmp_path / 'bag'
+    spec = {'nodes': {name: node_argv(name, ns, bag) for name in NODES},
+            'logs': str(tmp_path), 'tty': tty}
+    (tmp_path / 'spec.json').write_text(json.dumps(spec))
+    result = tmp_path / 'result.json'
+    term = Terminal() if tty else None
+    sent = Sent(probe, ns)
+    with open(tmp_path / 'runner.log', 'wb') as log:
+        if tty:
+            io = {'stdin': term.slave, 'stdout': term.slave, 'stderr': term.slave}
+        else:
+            io = {'stdin': subprocess.DEVNULL, 'stdout': log, 'stderr': subprocess.STDOUT}
+        runner = subprocess.Popen([sys.executable, str(RUNNER), str(tmp_path / 'spec.json'),
+                                   str(result)], start_new_session=True, **io)
+    try:
+        wait_recording(probe, ns, sent)
+        time.sleep(RECORD_FOR)
+        stop_ns = time.time_ns()
+        stop(runner.pid, term)
+        t0 = time.monotonic()
+        runner.wait(45.0)
+        stopped_in = time.monotonic() - t0
+        if tty:
+            wait_for(lambda: b'recorder: wrote' in term.output, 5.0, 'the summary on the tty')
+    finally:
+        try:
+            os.killpg(runner.pid, signal.SIGKILL)   # whatever is left of the group
+        except ProcessLookupError:
+            pass
+        runner.wait()
+        sent.close()
+        if term is not None:
+            term.close()
+    codes = json.loads(result.read_text())
+    logs = term.output.decode(errors='replace') if tty else '\n'.join(
+        (tmp_path / f'{n}.log').read_text() for n in NODES)
+    assert codes == dict.fromkeys(NODES, 0), (codes, logs)
+    report = check_complete(read_three_ways(bag), sent, ns, stop_ns)
+    print(f'{ns}: stopped in {stopped_in:.2f} s, exit codes {codes}, {report}')
+    return report
+
+
+def signals_to_group(*schedule):
+    """Return a stop that sends ``(delay, signal)`` pairs to the whole process group."""
+    def stop(pgid, _):
+        for delay, signum in schedule:
+            time.sleep(delay)
+            os.killpg(pgid, signum)
+    return stop
+
+
+@pytest.mark.parametrize('name, schedule', [
+    ('int_int', ((0.0, signal.SIGINT), (0.1, signal.SIGINT))),
+    # launch's escalation to SIGTERM, then one more SIGINT (the runner sends one as well)
+    ('int_term_int', ((0.0, signal.SIGINT), (0.02, signal.SIGTERM), (0.2, signal.SIGINT))),
+])
+def test_signals_to_the_process_group_of_a_launch_leave_a_complete_bag(
+        probe, tmp_path, name, schedule):
+    run_group(tmp_path, probe, f'/stop_{name}', signals_to_group(*schedule))
+
+
+def test_ctrl_c_twice_on_the_terminal_of_a_launch_leaves_a_complete_bag(probe, tmp_path):
+    def ctrl_c_twice(_, term):
+        os.write(term.master, b'\x03')
+        time.sleep(0.1)
+        os.write(term.master, b'\x03')
+    run_group(tmp_path, probe, '/stop_tty', ctrl_c_twice, tty=True)
+
+
+@pytest.mark.parametrize('first, code', [(signal.SIGINT, 130), (signal.SIGTERM, 143)],
+                         ids=['sigint', 'sigterm'])
+def test_loop_interrupted_twice_stops_every_node_and_finishes_the_bag(
+        probe, tmp_path, first, code):
+    ns = f'/stop_loop_{first.name.lower()}'
+    bag, logs = tmp_path / 'bag', tmp_path / 'logs'
+    sent = Sent(probe, ns)
+    with open(tmp_path / 'loop.out', 'wb') as out:
+        loop = subprocess.Popen(
+            [sys.executable, '-m', 'stiction_ros.cli.loop',
+             str(config_file('concentration_loop.yaml')), '--set', f'sample_time={TS}',
+             '--duration', '600', '--namespace', ns, '--record', str(bag), '--logs', str(logs)],
+            stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+            start_new_session=True)
+    try:
+        wait_recording(probe, ns, sent)
+        time.sleep(RECORD_FOR)
+        stop_ns = time.time_ns()
+        loop.send_signal(first)
+        time.sleep(0.1)
+        loop.send_signal(signal.SIGINT)
+        exit_code = loop.wait(45.0)
+        # No node outlived the launcher (each runs in a session of its own, out of reach
+        # of a terminal's Ctrl-C): every one was stopped and waited for.
+        left = node_processes(logs)
+    finally:
+        for pid in [loop.pid] * (loop.poll() is None) + node_processes(logs):
+            os.kill(pid, signal.SIGKILL)
+        loop.wait()
+        sent.close()
+    text = (tmp_path / 'loop.out').read_text()
+    assert exit_code == code, text
+    assert 'interrupted; nodes stopped, bag finalised' in text
+    assert not left, left
+    recorder_log = (logs / 'recorder.log').read_text()
+    assert 'recorder: wrote' in recorder_log, recorder_log
+    report = check_complete(read_three_ways(bag), sent, ns, stop_ns)
+    print(f'{ns}: exit code {exit_code}, {report}')
+
+
+def node_processes(log_dir):
+    """Return the ids of the processes whose command line names ``log_dir`` (the params file)."""
+    pids = []
+    for pid in filter(str.isdigit, os.listdir('/proc')):
+        try:
+            cmdline = Path(f'/proc/{pid}/cmdline').read_bytes().decode(errors='replace')
+        except OSError:             # gone meanwhile
+            continue
+        if str(log_dir) in cmdline:
+            pids.append(int(pid))
+    return pids
+
+
+def test_signals_during_start_up_stop_the_recorder_once_it_exists(tmp_path):
+    """
+    SIGINT twice while the node is being built: it finishes starting, then stops cleanly.
+
+    ``run`` catches SIGTERM from its first line on (Python does not by default), so the
+    process's caught-signal mask says when to send: during ``rclpy.init`` or the
+    recorder's set-up, before any spin.
+    """
+    bag = tmp_path / 'bag'
+    with open(tmp_path / 'recorder.log', 'wb') as log:
+        rec = subprocess.Popen(
+            [sys.executable, '-m', 'stiction_ros.nodes.recorder_node', '--ros-args',
+             '-r', '__ns:=/stop_start', '-p', f'output:={bag}'],
+            stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        wait_for(lambda: catches(rec.pid, signal.SIGTERM) or rec.poll() is not None, 30.0,
+                 'the recorder to enter run()')
+        rec.send_signal(signal.SIGINT)
+        rec.send_signal(signal.SIGINT)
+        code = rec.wait(30.0)
+    finally:
+        if rec.poll() is None:
+            rec.kill()
+            rec.wait()
+    text = (tmp_path / 'recorder.log').read_text()
+    assert code == 0, text
+    assert 'recorder: wrote 0 messages' in text, text
+    with open(next(bag.glob('*.mcap')), 'rb') as f:
+        assert make_reader(f).get_summary() is not None
+    assert read_bag(bag).complete
+
+
+def catches(pid, signum):
+    """Return whether process ``pid`` has a handler for ``signum`` (its SigCgt mask)."""
+    try:
+        status = Path(f'/proc/{pid}/status').read_text()
+    except OSError:
+        return False
+    mask = int(next(x for x in status.splitlines() if x.startswith('SigCgt:')).split()[1], 16)
+    return bool(mask >> (signum - 1) & 1)
