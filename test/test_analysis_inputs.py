@@ -121,7 +121,8 @@ def test_csv_names_case_spaces_extra_columns_missing_cells_and_gaps(tmp_path):
 
 @pytest.mark.parametrize('text, match', [
     ('', 'empty file'),
-    ('time,op\n0,1\n1,2\n', r"no 't' column .*columns: 'time', 'op'"),
+    ('clock,op\n0,1\n1,2\n', r"no time column .*columns: 'clock', 'op'; name it with "
+     '--columns t=COLUMN'),
     ('t,pv,sp\n0,1,2\n1,2,3\n', r"no 'op' column .*columns: 't', 'pv', 'sp'"),
     ('0,1\n1,2\n', 'no header row'),
     ('t,op\n0,1\n1,2\n2,abc\n', r"row 4, column 'op': 'abc' is not a number"),
@@ -169,6 +170,9 @@ def test_bag_round_trip_at_the_live_loop_phases(loop, tmp_path):
     assert rec.valid.all() and not rec.notes and rec.start_time is None
     same = load_record(bag / 'live_0.mcap', namespace='loop1')      # the bare .mcap file
     assert np.array_equal(same.signals['pv'], rec.signals['pv'])
+    mapped = load_record(bag, columns={'op': 'FIC101.OP'})          # a bag has its topics
+    assert mapped.notes[0].startswith('--columns ignored: a bag holds the topics op, mv')
+    assert np.array_equal(mapped.signals['op'], rec.signals['op'])
 
 
 def test_bag_gaps_are_invalid_samples_with_notes(loop, tmp_path):

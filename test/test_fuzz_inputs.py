@@ -14,6 +14,7 @@ further.  The session summary prints how many inputs were tried.
 """
 
 from collections import Counter
+from datetime import datetime, timedelta
 import os
 from pathlib import Path
 import shutil
@@ -149,11 +150,25 @@ def line_edits(draw, text):
 
 # ---- CSV ------------------------------------------------------------------------------
 
-NAMES = st.sampled_from(['t', 'T ', 'time', 'op', ' OP', 'mv', 'pv', 'sp', 'note', '', 'op'])
+NAMES = st.sampled_from(['t', 'T ', 'time', 'op', ' OP', 'mv', 'pv', 'sp', 'note', '', 'op',
+                         'Timestamp', 'Time (ms)', 'FIC1.OP', 'FIC1_PV', 'FIC2.OP', 'X.MV'])
 CELLS = st.one_of(
     st.floats(-1e3, 1e3).map(repr), st.floats().map(repr), st.integers(-10**20, 10**20).map(str),
-    st.sampled_from(['', 'nan', 'inf', '-inf', '1e400', '0x10', '1,5', '--', '"a,b"', '2024']),
+    st.sampled_from(['', 'nan', 'inf', '-inf', '1e400', '0x10', '1,5', '--', '"a,b"', '2024',
+                     'No Data', '1.234,5', '2026-03-01 12:00:00', '3/1/2026 1:00 PM', '12:00']),
     st.text(max_size=6))
+
+
+def _time_text(t, form):
+    # The time column as seconds, or as the dates historians write.
+    if form == 'seconds':
+        return repr(t)
+    try:
+        stamp = datetime(2026, 3, 1) + timedelta(seconds=t)
+    except OverflowError:
+        return repr(t)
+    return stamp.strftime({'iso': '%Y-%m-%d %H:%M:%S', 'zone': '%Y-%m-%dT%H:%M:%SZ',
+                           'dotted': '%d.%m.%Y %H:%M:%S', 'us': '%m/%d/%Y %I:%M:%S %p'}[form])
 
 
 @st.composite
@@ -163,12 +178,13 @@ def csv_texts(draw):
     if draw(st.booleans()):
         header = ['t', 'op'] + header
     delim = draw(st.sampled_from([',', ';', '\t']))
+    form = draw(st.sampled_from(['seconds', 'seconds', 'iso', 'zone', 'dotted', 'us']))
     t = 0.0
     rows = [delim.join(header)]
     for _ in range(draw(st.integers(0, 60))):
-        t += draw(st.sampled_from([1.0, 1.0, 1.0, 0.5, 2.0, 0.0, -1.0]))
+        t += draw(st.sampled_from([1.0, 1.0, 1.0, 0.5, 2.0, 0.0, -1.0, 3.0, 7.0]))
         cells = [draw(CELLS) for _ in range(max(len(header) - 1, 0) + draw(st.integers(-1, 1)))]
-        rows.append(delim.join([repr(t)] + cells))
+        rows.append(delim.join([_time_text(t, form)] + cells))
     return '\n'.join(rows) + draw(st.sampled_from(['\n', '', '\r\n']))
 
 

@@ -14,6 +14,7 @@ and the analyzer node all go through :func:`analyze_file`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import math
 import numbers
@@ -33,6 +34,9 @@ MODEL_CHOICES = ('kano', 'choudhury', 'both')
 LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
 # explain_record's limit: at least a tenth of the record must stay for the fits.
 HOLDOUT_MAX = 0.9
+# What --columns may name: the time and the readers' signals (stiction_ros.analysis.record).
+COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp')
+COLUMNS_FIX = 'write SIGNAL=COLUMN pairs, e.g. --columns op=FIC101.OP,pv=FIC101.PV,t=Timestamp'
 
 Say = Callable[[str], None]
 
@@ -55,6 +59,55 @@ def _path_or_none(value, name):
     if not isinstance(value, (str, os.PathLike)):
         raise InputError(f'{name} must be a path (str or Path), got {value!r}')
     return os.fspath(value)
+
+
+def parse_columns(value: object) -> tuple[tuple[str, str], ...] | None:
+    """
+    Return ``--columns`` as ``((signal, column), ...)`` in the order t, op, mv, pv, sp.
+
+    ``value`` is None, text (``'op=FIC101.OP,pv=FIC101.PV'``), a mapping or
+    pairs.  Raises :class:`InputError` naming the fix for an unknown signal,
+    an empty column name, a signal given twice or a column given for two.
+    """
+    if value is None:
+        return None
+    if isinstance(value, str):
+        pairs = []
+        for part in (p for p in value.split(',') if p.strip()):
+            if '=' not in part:
+                raise InputError(f'--columns: {part.strip()!r} is not SIGNAL=COLUMN; '
+                                 + COLUMNS_FIX)
+            key, name = part.split('=', 1)
+            pairs.append((key, name))
+    elif isinstance(value, Mapping):
+        pairs = list(value.items())
+    else:
+        try:
+            pairs = [(k, v) for k, v in value]
+        except (TypeError, ValueError):
+            raise InputError(f'--columns must be SIGNAL=COLUMN pairs, got {value!r}; '
+                             + COLUMNS_FIX) from None
+    out = {}
+    for key, name in pairs:
+        if not isinstance(key, str) or not isinstance(name, str):
+            raise InputError(f'--columns: {key!r}={name!r} is not text; ' + COLUMNS_FIX)
+        key, name = key.strip().lower(), name.strip()
+        if key not in COLUMN_KEYS:
+            raise InputError(f'--columns: {key!r} is no signal; name one of '
+                             f'{", ".join(COLUMN_KEYS)} (t: the time)')
+        if not name:
+            raise InputError(f'--columns {key}=: the column name is empty; ' + COLUMNS_FIX)
+        if key in out:
+            raise InputError(f'--columns: {key} is given twice ({out[key]!r} and {name!r}); '
+                             'give each signal once')
+        twice = [k for k, v in out.items() if v.lower() == name.lower()]
+        if twice:
+            raise InputError(f'--columns: column {name!r} is given for {twice[0]} and {key}; '
+                             'each signal needs its own column')
+        out[key] = name
+    if not out:
+        raise InputError('--columns is empty; ' + COLUMNS_FIX)
+    return tuple((k, out[k]) for k in COLUMN_KEYS if k in out)
 
 
 def _whole(value, name, least, fix):
@@ -82,6 +135,10 @@ class AnalyzeOptions:
         Analyse only ``T0 <= t <= T1``, seconds from the start of the record.
     namespace : str or None
         Namespace of the loop topics in a bag, e.g. ``'/loop1'``.
+    columns : tuple of (str, str) pairs, or None
+        Which CSV or historian column holds ``t``, ``op``, ``mv``, ``pv``, ``sp``
+        where the names do not say; given as text (``'op=FIC101.OP,t=Zeit'``),
+        a mapping or pairs, kept as ``(('t', 'Zeit'), ('op', 'FIC101.OP'))``.
     loop_type : str
         ``'auto'``, ``'self-regulating'`` or ``'integrating'``.
     detector : str or None
@@ -109,6 +166,7 @@ class AnalyzeOptions:
     fit_filter: bool = False
     window: tuple[float, float] | None = None
     namespace: str | None = None
+    columns: tuple[tuple[str, str], ...] | None = None
     loop_type: str = 'auto'
     detector: str | None = None
     hammerstein: bool = True
@@ -143,6 +201,7 @@ class AnalyzeOptions:
                 if not 0.0 <= getattr(self, name) <= 100.0:
                     raise InputError(f'{name} = {v} is outside [0, 100] % of span')
         self._check_window(put)
+        put('columns', parse_columns(self.columns))
         holdout = self._number('holdout', self.holdout)
         if not 0.0 <= holdout < HOLDOUT_MAX:
             raise InputError(f'holdout (--holdout) must be in [0, {HOLDOUT_MAX:g}), got '
@@ -211,8 +270,11 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
                                fit_filter=options.fit_filter, loop_type=options.loop_type,
                                hammerstein=options.hammerstein, detector=options.detector)
     say(f'reading {options.input}')
-    record = load_record(options.input, namespace=options.namespace, window=options.window)
-    say(f'{record.samples} samples at {record.sample_time:g} s, signals '
+    record = load_record(options.input, namespace=options.namespace, window=options.window,
+                         columns=dict(options.columns) if options.columns else None)
+    sampling = record.source.get('sampling')
+    say(f'{record.samples} samples at {record.sample_time:g} s'
+        + (f' ({sampling})' if sampling else '') + ', signals '
         f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
     analysis = analyze(record, pipeline_options,
                        progress=lambda level, n: say(f'  search level {level}: {n} evaluations'))

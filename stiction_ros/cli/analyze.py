@@ -3,12 +3,13 @@ stiction-analyze: is this valve sticking, how much, and how well do the models f
 
     stiction-analyze INPUT [--model kano|choudhury|both] [--S S --J J]
                      [--fit-filter] [--window T0 T1] [--namespace NS]
+                     [--columns op=COL,pv=COL,...]
                      [--loop-type auto|self-regulating|integrating]
                      [--json REPORT.json] [--html REPORT.html]
 
-INPUT is a rosbag2 directory or .mcap file, a CSV (t, op and any of mv, pv,
-sp) or a historian export.  Problems with the input end in one line on stderr
-and exit status 2.
+INPUT is a rosbag2 directory or .mcap file, a CSV or a historian export (see
+INPUTS below).  Problems with the input end in one line on stderr and exit
+status 2.
 
 INPUT may also be a folder of recordings or a quoted glob ('plant/**/*.csv'):
 each is analysed on its own, over ``--jobs`` processes or a Dask cluster
@@ -33,11 +34,42 @@ EXIT_INPUT = 2
 # The learned detector's model file is missing or damaged: the install, not the input.
 EXIT_DETECTOR = 3
 
+EPILOG = """\
+inputs:
+  bag        a rosbag2 directory or .mcap file with std_msgs/Float64 topics op and any
+             of mv, pv, sp (under one namespace: --namespace)
+  CSV        a header row, then one row per sample, separated by , or ; or tab:
+             time   t, time, timestamp, datetime, 'Time (s)', 'time [ms]', 'Timestamp
+                    (UTC)', or date + time columns: seconds, or dates such as
+                    2026-03-01 12:00:00, 2026-03-01T12:00:00Z, 2026-03-01T12:00:00+01:00,
+                    01.03.2026 12:00:00
+             op     controller output (required), mv valve position, pv, sp: named
+                    so, or by tag: FIC101.OP, FIC101_PV, 'FIC101 SP' (.SV is sp; a
+                    lone FIC101.MV is the controller output, as DCS historians name it)
+             anything else: --columns op=FIC101.OUT,pv=FIC101.MEAS,t=Zeit
+             decimal commas (1,25) are read in files separated by ; or tab; rows
+             that are not on one sample grid are resampled (linear interpolation
+             between stored values; the period and why are in the report's notes)
+  historian  an export whose first line is PROCESSDATA (<TAG>.MV is the controller
+             output)
+  Excel      .xlsx/.xls/.ods are refused: save the sheet as CSV (File > Save As >
+             CSV UTF-8) and pass that file
+
+exit status:
+  0  analysed (many recordings: all of them)
+  2  bad input or option: one line on stderr names the problem and the fix (many
+     recordings: any failed)
+  3  the learned detector's model file is missing or damaged
+"""
+
 
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser."""
-    p = argparse.ArgumentParser(prog='stiction-analyze', description=__doc__.split('\n')[1])
-    p.add_argument('input', help='rosbag2 directory, .mcap file, CSV or historian export')
+    p = argparse.ArgumentParser(prog='stiction-analyze', description=__doc__.split('\n')[1],
+                                epilog=EPILOG,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('input', help='rosbag2 directory, .mcap file, CSV or historian export '
+                                 '(see inputs below)')
     p.add_argument('--model', default='both', choices=MODEL_CHOICES,
                    help='model(s) to fit when MV is present (default both)')
     p.add_argument('--S', type=float, help='use this S (%%) instead of identifying it')
@@ -47,6 +79,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--window', nargs=2, type=float, metavar=('T0', 'T1'),
                    help='analyse only T0 <= t <= T1, seconds from the start of the record')
     p.add_argument('--namespace', help='namespace of the loop topics in a bag, e.g. /loop1')
+    p.add_argument('--columns', metavar='SIGNAL=COLUMN,...',
+                   help='which CSV or historian columns hold t, op, mv, pv, sp where their '
+                        'names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp')
     p.add_argument('--loop-type', default='auto', choices=LOOP_TYPES,
                    help='auto: integrating when the tag names a level loop (LIC)')
     p.add_argument('--detector', metavar='FILE', default=None,

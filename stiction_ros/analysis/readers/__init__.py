@@ -3,15 +3,18 @@ Load a loop recording from a bag, a CSV or a historian export into a :class:`Rec
 
 The format is detected from the path and the first bytes: a directory
 (rosbag2) or an ``.mcap`` file or MCAP magic is a bag, a first line starting
-``PROCESSDATA`` is a historian export, anything else is read as CSV.  Every
+``PROCESSDATA`` is a historian export, a spreadsheet (.xlsx, .xls, .ods, by
+its bytes) is refused with the fix, anything else is read as CSV.  Every
 problem with the input is an :class:`InputError` with a one-line message.
 """
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from stiction_ros.analysis.readers.bag_signals import read_bag_record
 from stiction_ros.analysis.readers.csv_reader import read_csv_record
 from stiction_ros.analysis.readers.historian import is_historian, read_historian_record
+from stiction_ros.analysis.readers.sniff import decode, read_bytes, refuse_office_file
 from stiction_ros.analysis.record import check_enough, InputError, MIN_VALID, Record
 
 __all__ = ['detect_format', 'InputError', 'load_record', 'Record']
@@ -19,7 +22,7 @@ __all__ = ['detect_format', 'InputError', 'load_record', 'Record']
 MCAP_MAGIC = b'\x89MCAP'
 
 
-def detect_format(path):
+def detect_format(path: str | Path) -> str:
     """Return ``'bag'``, ``'historian'`` or ``'csv'`` for the input at ``path``."""
     path = Path(path)
     if not path.exists():
@@ -30,11 +33,12 @@ def detect_format(path):
         raise InputError(f'{path}: a directory without a bag (no metadata.yaml or .mcap file)')
     if path.suffix.lower() == '.mcap':
         return 'bag'
-    head = _read(path, 64)
+    head = read_bytes(path, 64)
     if not head.strip():
         raise InputError(f'{path}: empty file')
     if head.startswith(MCAP_MAGIC):
         return 'bag'
+    refuse_office_file(path, head)
     if is_historian(head.decode('utf-8', errors='replace')):
         return 'historian'
     return 'csv'
@@ -42,25 +46,32 @@ def detect_format(path):
 
 def load_record(path: str | Path, namespace: str | None = None,
                 window: tuple[float | None, float | None] | None = None,
-                min_valid: int = MIN_VALID) -> Record:
+                min_valid: int = MIN_VALID, columns: Mapping[str, str] | None = None) -> Record:
     """
     Return the :class:`Record` of a recording, restricted to ``window`` if given.
 
     ``namespace`` picks the bag topics (``/loop1`` for ``/loop1/op``; default:
     the one namespace that has an ``op``).  ``window`` is ``(t0, t1)`` in
-    seconds from the start (either may be None).  Raises :class:`InputError`
-    if the input is unusable or has fewer than ``min_valid`` valid samples.
+    seconds from the start (either may be None).  ``columns`` maps ``t``,
+    ``op``, ``mv``, ``pv``, ``sp`` to the CSV or historian columns that hold
+    them (``{'op': 'FIC101.OP'}``), where the names do not say.  Raises
+    :class:`InputError` if the input is unusable or has fewer than
+    ``min_valid`` valid samples.
     """
     path = Path(path)
+    columns = dict(columns) if columns else None
     kind = detect_format(path)
     if kind == 'bag':
         record = read_bag_record(path, namespace)
+        if columns:
+            record.notes.insert(0, '--columns ignored: a bag holds the topics op, mv, pv, sp '
+                                '(pick a loop with --namespace)')
     else:
-        text, note = _text(path)
+        text, note = decode(path, read_bytes(path))
         if kind == 'historian':
-            record = read_historian_record(path, text)
+            record = read_historian_record(path, text, columns)
         else:
-            record = read_csv_record(path, text)
+            record = read_csv_record(path, text, columns)
         if note:
             record.notes.insert(0, note)
         if namespace is not None:
@@ -68,28 +79,3 @@ def load_record(path: str | Path, namespace: str | None = None,
     if window is not None:
         record = record.window(*window)
     return check_enough(record, min_valid)
-
-
-def _read(path, size=None):
-    try:
-        with open(path, 'rb') as f:
-            return f.read() if size is None else f.read(size)
-    except OSError as err:
-        raise InputError(f'{path}: cannot read: {err.strerror or err}') from None
-
-
-def _text(path):
-    data = _read(path)
-    if not data.strip():
-        raise InputError(f'{path}: empty file')
-    if b'\0' in data:
-        raise InputError(f'{path}: not a text file (it holds NUL bytes), nor a bag')
-    try:
-        return data.decode('utf-8-sig'), None
-    except UnicodeDecodeError as err:
-        where = err.start
-    try:
-        # historian exports from Chinese-locale systems may be GB18030
-        return data.decode('gb18030'), f'read as GB18030: byte {where} is not UTF-8'
-    except UnicodeDecodeError:
-        raise InputError(f'{path}: not UTF-8 text (byte {where})') from None

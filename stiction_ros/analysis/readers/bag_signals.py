@@ -128,7 +128,7 @@ def read_bag_record(path, namespace=None, held=True):
         start = datetime.fromtimestamp(origin, timezone.utc).isoformat()
     source = {'path': str(path), 'format': 'bag', 'stamps': stamp_kind,
               'topics': {name: topic.name for name, topic in topics.items()},
-              'phases': phases}
+              'phases': phases, 'sampling': f'the spacing of the {topics["op"].name} messages'}
     record = assemble(signals, ts, reasons=reasons, notes=notes, source=source,
                       start_time=start, name=prefix or Path(path).name,
                       time_origin=float(origin))

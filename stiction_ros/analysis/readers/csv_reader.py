@@ -1,69 +1,189 @@
 """
-Read a CSV with a header row: ``t`` (s, increasing), ``op`` and any of ``mv``, ``pv``, ``sp``.
+Read a CSV, or a historian's or spreadsheet's CSV export, into a :class:`Record`.
 
-Column names are matched case-insensitively with spaces stripped; other
-columns are ignored (with a note).  The delimiter is whichever of ``,``,
-``;`` or tab the header uses.  Row numbers in messages are the file's line
-numbers, as a spreadsheet shows them (the header is row 1).  An empty cell
-or ``nan``/``inf`` in a signal is a missing value (NaN, noted); anything
-else that is not a number is an error.
+The columns (columns.py): a time column (``t``, ``time``, ``timestamp``,
+``Time (s)`` ...; seconds or dates, stamps.py) and ``op``, plus any of
+``mv``, ``pv``, ``sp``, or tag-prefixed names (``FIC101.OP``); ``columns``
+(``--columns``) names them where the names do not say.  Other columns are
+ignored (with a note).  The delimiter is whichever of ``,``, ``;`` or tab
+the header uses most.  With ``;`` or tab between cells, a decimal comma
+(``1,25``, also ``1.234,5``) is read as the European locales of Excel
+write it.  Row numbers in messages are the file's line numbers, as a
+spreadsheet shows them (the header is row 1).  An empty cell, ``nan``,
+``inf`` or a historian's word for a bad value (``No Data``, ``I/O Timeout``,
+``#N/A``) is a missing value (NaN, noted); any other text is an error.
+
+Rows on one sample grid are placed on it, and a sample without a row is a
+gap.  Rows that are not (a historian's raw values, stored when they change;
+a logger's jittered stamps) are resampled at a period the notes state, by
+linear interpolation between stored values (align.py says why).
 """
 
 import csv
+from datetime import datetime, timedelta
+import re
 
 import numpy as np
 from stiction_ros.analysis.readers import align
-from stiction_ros.analysis.record import assemble, InputError, SIGNALS
+from stiction_ros.analysis.readers.columns import match_columns
+from stiction_ros.analysis.readers.stamps import decrease_hint, read_stamps, TIME_OF_DAY
+from stiction_ros.analysis.record import assemble, InputError
+
+# What historians (OSIsoft PI's system digital states, IP.21, PHD) and Excel write in
+# place of a value they do not have: a bad value, never a number.
+BAD_WORDS = frozenset([
+    'no data', 'bad', 'bad input', 'bad data', 'bad quality', 'i/o timeout', 'shutdown',
+    'comm fail', 'scan off', 'out of serv', 'calc failed', 'pt created', 'configure',
+    'over range', 'under range', 'intf shut', 'no sample', 'no good data', 'null', 'none',
+    'n/a', '#n/a', '#value!', '#div/0!', '#ref!', '#num!', '#name?', '#null!'])
+DECIMAL_COMMA = re.compile(r'[+-]?(?:\d{1,3}(?:\.\d{3})+|\d*),\d+(?:[eE][+-]?\d+)?')
+# Rows on one grid that cover fewer of its samples than this were stored on change,
+# not logged every sample (a logger that lost a tenth of its rows is rare; a
+# historian that stores on change skips most samples of a steady signal): they are
+# resampled, not left with gaps.
+COVERED = 0.9
+# A historian's compression stores fewer values than this share of the samples: the
+# stiction measures of the reconstruction may be artefacts of the compression.
+COMPRESSED = 3.0
+MAX_SAMPLES = 50_000_000
 
 
-def read_csv_record(path, text):
-    """Return the :class:`Record` of CSV ``text`` read from ``path``."""
+class _Cells:
+    """Read the cells of one file as numbers; count decimal commas and words for bad."""
+
+    def __init__(self, path, delim):
+        self.path, self.comma_ok = path, delim != ','
+        self.commas, self.comma_example, self.comma_whole = 0, None, True
+        self.bad = {}
+
+    def number(self, no, name, cell):
+        text = cell.strip()
+        if not text:
+            return np.nan
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        if DECIMAL_COMMA.fullmatch(text):
+            if self.comma_ok:
+                self.commas += 1
+                value = float(text.replace('.', '').replace(',', '.'))
+                if self.comma_example is None or (self.comma_whole and not value.is_integer()):
+                    # the note's example is one whose decimals show (1,25, not 0,0)
+                    self.comma_example, self.comma_whole = text, value.is_integer()
+                return value
+            raise InputError(f'{self.path}: row {no}, column {name!r}: {_cell(cell)} is not a '
+                             "number: with ',' between cells, write decimals with '.' (or "
+                             "save the file with ';' between cells)")
+        if text.lower() in BAD_WORDS:
+            self.bad.setdefault(name, {}).setdefault(text, 0)
+            self.bad[name][text] += 1
+            return np.nan
+        raise InputError(f'{self.path}: row {no}, column {name!r}: {_cell(cell)} is not a '
+                         'number')
+
+    def is_number(self, text):
+        # a decimal comma between ',' separators is a number to refuse with the hint
+        text = text.strip()
+        return bool(DECIMAL_COMMA.fullmatch(text)) or _is_number(text)
+
+    def notes(self):
+        out = []
+        if self.commas:
+            value = float(self.comma_example.replace('.', '').replace(',', '.'))
+            out.append(f'decimal commas: {self.commas} cells such as '
+                       f'{self.comma_example!r} read as {value:g}')
+        for name, words in self.bad.items():
+            count = sum(words.values())
+            out.append(f'{name}: {count} cell' + ('s' if count > 1 else '') + ' marked bad ('
+                       + ', '.join(repr(w) for w in words) + ') read as missing values')
+        return out
+
+
+def read_csv_record(path, text, columns=None):
+    """Return the :class:`Record` of CSV ``text`` read from ``path``; ``columns`` as --columns."""
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith('#')]
     if not lines:
         raise InputError(f'{path}: no header row and no data')
     head_no, head = lines[0]
     delim = max((',', ';', '\t'), key=head.count)
-    header = [c.strip().lower() for c in next(csv.reader([head], delimiter=delim))]
-    if all(_is_number(c) for c in header):
-        raise InputError(f'{path}: no header row; line {head_no} holds numbers. The first line '
-                         'must name the columns: t, op and any of mv, pv, sp')
-    for name in header:
-        if name and header.count(name) > 1:
-            raise InputError(f'{path}: column {name!r} appears {header.count(name)} times')
-    if 't' not in header:
-        raise InputError(f"{path}: no 't' column (time in seconds); columns: {_names(header)}")
-    if 'op' not in header:
-        raise InputError(f"{path}: no 'op' column (controller output); columns: "
-                         f'{_names(header)}')
-    used = ['t'] + [s for s in SIGNALS if s in header]
-    cols = [header.index(c) for c in used]
-    ignored = [c for c in header if c not in used]
-    rows = list(csv.reader([line for _, line in lines[1:]], delimiter=delim))
+    header = [c.strip() for c in _parse(path, [head], delim)[0]]
+    if all(_is_number(c) or _is_date(c) for c in header):
+        raise InputError(f'{path}: no header row; line {head_no} holds data. The first line '
+                         'must name the columns: a time (t, time or timestamp), op and any of '
+                         'mv, pv, sp')
+    cols = match_columns(path, header, columns)
+    rows = _parse(path, [line for _, line in lines[1:]], delim)
     if not rows:
         raise InputError(f'{path}: a header row but no data')
-    data = np.empty((len(rows), len(used)))
-    for r, ((no, _), cells) in enumerate(zip(lines[1:], rows)):
+    nos = [no for no, _ in lines[1:]]
+    for no, cells in zip(nos, rows):
+        while len(cells) > len(header) and not cells[-1].strip():
+            cells.pop()                  # a trailing delimiter, as some exports end rows
         if len(cells) != len(header):
+            hint = (": if its numbers have decimal commas (1,25), save the file with ';' "
+                    'between cells' if delim == ',' and len(cells) > len(header) else '')
             raise InputError(f'{path}: row {no} has {len(cells)} cells; the header has '
-                             f'{len(header)}')
-        for j, c in enumerate(cols):
-            data[r, j] = _number(path, no, used[j], cells[c])
-    t = data[:, 0]
-    bad_t = np.flatnonzero(~np.isfinite(t))
-    if len(bad_t):
-        no = lines[1 + bad_t[0]][0]
-        raise InputError(f'{path}: row {no}: t is {_cell(rows[bad_t[0]][cols[0]])}; every row '
-                         'needs a finite time')
+                             f'{len(header)}{hint}')
+    reader = _Cells(path, delim)
+    stamps, notes = _time(path, header, cols, rows, nos, reader)
+    values, stored, marked = {}, {}, {}
+    for name, c in cols.signals.items():
+        values[name] = np.array([reader.number(no, header[c], cells[c])
+                                 for no, cells in zip(nos, rows)], dtype=np.float64)
+        stored[name] = np.array([bool(cells[c].strip()) for cells in rows])
+        marked[name] = sum(reader.bad.get(header[c], {}).values())
+    notes = cols.notes + notes + reader.notes()
+    return _on_grid(path, stamps, (values, stored, marked), cols.ignored, notes,
+                    {s: header[i] for s, i in cols.signals.items()})
+
+
+def _parse(path, lines, delim):
+    try:
+        return list(csv.reader(lines, delimiter=delim))
+    except csv.Error as err:
+        # e.g. a cell over the csv module's 128 KiB limit: no recording has one
+        raise InputError(f'{path}: not a readable CSV ({err})') from None
+
+
+def _time(path, header, cols, rows, nos, reader):
+    name = header[cols.time]
+    cells = [r[cols.time] for r in rows]
+    notes = []
+    if cols.date is not None:
+        first = next((c.strip() for c in cells if c.strip()), '')
+        if TIME_OF_DAY.fullmatch(first):
+            cells = [f'{r[cols.date].strip()} {c.strip()}' for r, c in zip(rows, cells)]
+            notes.append(f'time: {header[cols.date]!r} and {name!r} joined into one stamp')
+            name = f'{header[cols.date]} {name}'
+        else:
+            cols.ignored.append(header[cols.date])
+    stamps = read_stamps(path, name, cols.unit, cells, nos,
+                         lambda no, text: reader.number(no, name, text), reader.is_number)
+    stamps.name = name
+    t = stamps.seconds
+    bad = np.flatnonzero(~np.isfinite(t))
+    if len(bad):
+        raise InputError(f'{path}: row {nos[bad[0]]}: {name} is {_cell(cells[bad[0]])}; every '
+                         'row needs a finite time')
     back = np.flatnonzero(np.diff(t) <= 0)
     if len(back):
         r = back[0] + 1
-        raise InputError(f'{path}: row {lines[1 + r][0]}: t = {t[r]:g} does not increase (row '
-                         f'{lines[r][0]}: t = {t[r - 1]:g}); time must increase')
-    return _on_grid(path, t, {name: data[:, j + 1] for j, name in enumerate(used[1:])}, ignored)
+        now, before = _shown(stamps, t, cells, r), _shown(stamps, t, cells, r - 1)
+        raise InputError(f'{path}: row {nos[r]}: {name} = {now} does not increase (row '
+                         f'{nos[r - 1]}: {name} = {before}); time must increase'
+                         + decrease_hint(stamps, t[r] - t[r - 1]))
+    return stamps, stamps.notes + notes
 
 
-def _on_grid(path, t, values, ignored):
+def _shown(stamps, t, cells, r):
+    return f'{t[r]:g}' if stamps.kind in ('seconds', 'unix') else repr(cells[r].strip())
+
+
+def _on_grid(path, stamps, cells, ignored, notes, names_used):
+    values, stored, marked = cells
+    t = stamps.seconds
     rel = t - t[0]
     try:
         ts = align.sample_period(rel)
@@ -74,16 +194,55 @@ def _on_grid(path, t, values, ignored):
     k0 = int(k[0])
     k -= k0
     n = int(k[-1]) + 1
-    notes = [note for note in [align.stray_note('t', rel, ts, center)] if note]
-    if ignored:
-        notes.append('ignored columns: ' + ', '.join(c or '(unnamed)' for c in ignored))
     _, crowded, dropped, _ = align.place(k, np.zeros(len(k)), n)
-    crowding = align.crowding_note('rows', crowded, dropped, ts)
-    if crowding:
-        notes.append(crowding)
+    stray = align.off_grid(rel, ts, center)
+    covered = len(np.unique(k)) / n
+    if ignored:
+        notes.append('ignored columns: ' + ', '.join(ignored))
+    if stray <= align.STRAY and not len(crowded) and covered >= COVERED:
+        _check_size(path, n, ts)
+        signals = _binned(k, n, values, marked, notes)
+        sampling = "the rows' spacing"
+        offset = center + k0 * ts
+    else:
+        best = ts
+        ts, period_why = align.resample_period(rel)
+        n = int(np.floor(rel[-1] / ts + 1e-9)) + 1
+        _check_size(path, n, ts)
+        if align.off_grid(rel, ts, 0.0) < 1e-3:
+            why = f'rows for only {len(rel) / n:.0%} of the samples'
+        elif stray > align.STRAY:
+            why = f'stamps up to {stray:.0%} of a sample off the best grid, {best:g} s'
+        else:
+            why = f'{dropped} rows share a sample of the best grid, {best:g} s'
+        sampling = (f'resampled at {ts:g} s, {period_why}, by linear interpolation between '
+                    'stored values')
+        notes.append(f'rows not on one sample grid ({why}): {sampling}, as a historian '
+                     'interpolates (holding each value would draw steps, which read as '
+                     'stick-slip)')
+        signals = _resampled(rel, n, ts, values, stored, notes)
+        offset = 0.0
+    source = {'path': str(path), 'format': 'csv', 'columns': names_used,
+              'time': f'{stamps.name} ({stamps.kind})', 'sampling': sampling}
+    start = None
+    if stamps.start is not None:
+        start = (stamps.start + timedelta(seconds=float(offset))).isoformat()
+    origin = 0.0 if stamps.kind in ('datetime', 'time of day') else float(t[0] + offset)
+    return assemble(signals, ts, notes=notes, source=source, start_time=start,
+                    name=_stem(path), time_origin=origin)
+
+
+def _check_size(path, n, ts):
+    if n > MAX_SAMPLES:
+        raise InputError(f'{path}: the time stamps span {n} samples of {ts:g} s; they are not '
+                         'one recording (check the time column and its unit)')
+
+
+def _binned(k, n, values, marked, notes):
     signals = {}
     for name, v in values.items():
-        bad = np.count_nonzero(~np.isfinite(v))
+        # cells with a word for bad have their own note
+        bad = np.count_nonzero(~np.isfinite(v)) - marked[name]
         if bad:
             notes.append(f'{name}: {bad} empty or non-finite cell' + ('s' if bad > 1 else '')
                          + ' read as missing values')
@@ -92,20 +251,40 @@ def _on_grid(path, t, values, ignored):
     if gaps:
         notes.append(f'{gaps} sample' + ('s have' if gaps > 1 else ' has')
                      + ' no row (a gap in t); left as gaps')
-    source = {'path': str(path), 'format': 'csv', 'columns': {s: s for s in values}}
-    return assemble(signals, ts, notes=notes, source=source, start_time=None,
-                    name=_stem(path), time_origin=float(t[0] + center + k0 * ts))
+    return signals
 
 
-def _number(path, no, name, cell):
-    text = cell.strip()
-    if not text:
-        return np.nan
+def _resampled(rel, n, ts, values, stored, notes):
+    grid = np.arange(n) * ts
+    longest = max(align.BRIDGE_S, align.BRIDGE_SAMPLES * ts)
+    signals, sparse = {}, []
+    for name, v in values.items():
+        # An empty cell is no stored value (exports of several tags leave the others
+        # empty); 'nan' or a word for bad is a bad value, which nothing is drawn across.
+        keep = stored[name]
+        signals[name], gaps = align.interpolate(rel[keep], v[keep], grid, longest)
+        if gaps:
+            at, length = max(gaps, key=lambda g: g[1])
+            notes.append(f'{name}: {len(gaps)} interval' + ('s' if len(gaps) > 1 else '')
+                         + f' longer than {longest:g} s without a stored value (the longest '
+                         f'{length:g} s, from t = {at:g} s) left as gaps')
+        count = int(np.count_nonzero(np.isfinite(v[keep])))
+        if name != 'sp' and count and n / count > COMPRESSED:
+            sparse.append(f'{name} 1 in {n / count:.3g}')
+    if sparse:
+        notes.append('stored values cover few samples (' + ', '.join(sparse) + '): the '
+                     'historian compressed them or stored them on change, and stiction '
+                     'measures of such data can be artefacts of the compression; if the '
+                     'historian can, export interpolated values at the scan rate')
+    return signals
+
+
+def _is_date(text):
     try:
-        return float(text)
+        datetime.fromisoformat(text)
     except ValueError:
-        raise InputError(f'{path}: row {no}, column {name!r}: {_cell(cell)} is not a '
-                         'number') from None
+        return False
+    return True
 
 
 def _is_number(text):
@@ -118,10 +297,6 @@ def _is_number(text):
 
 def _cell(cell):
     return repr(cell if len(cell) <= 40 else cell[:37] + '...')
-
-
-def _names(header):
-    return ', '.join(repr(c) for c in header)
 
 
 def _stem(path):

@@ -36,8 +36,13 @@ def is_historian(text):
     return text.lstrip('\ufeff').split('\n', 1)[0].split('\t', 1)[0].strip() == 'PROCESSDATA'
 
 
-def read_historian_record(path, text):
-    """Return the :class:`Record` of historian export ``text`` read from ``path``."""
+def read_historian_record(path, text, columns=None):
+    """
+    Return the :class:`Record` of historian export ``text`` read from ``path``.
+
+    ``columns`` (``--columns``) maps ``op``, ``mv``, ``pv``, ``sp`` to line 3's
+    tags where the suffixes do not say; the time is always the first column.
+    """
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
@@ -54,8 +59,8 @@ def read_historian_record(path, text):
     if header[0].strip().lower() != 'tagname':
         raise InputError(f"{path}: line 3 must start with 'tagname' and name the columns; "
                          f'got {lines[2][:60]!r}')
-    columns = [c.strip() for c in header[1:]]
-    roles, flags, notes = _roles(path, columns, tag)
+    given, columns = columns or {}, [c.strip() for c in header[1:]]
+    roles, flags, notes = _roles(path, columns, tag, given)
     desc = _cells(lines[3]) if len(lines) > 3 else ['']
     descs = desc[1:] if desc[0].strip().lower() == 'desc' else []
     first_row = 3
@@ -74,6 +79,7 @@ def read_historian_record(path, text):
     signals = {r: align.place(k, values[r], n)[0] for r in roles if r != 'mode'}
     reasons = _exclusions(values, k, n, roles, flags, signals, notes)
     source = {'path': str(path), 'format': 'historian',
+              'sampling': 'the sampling period line 2 announces',
               'columns': {r: columns[i] for r, i in roles.items()},
               'descriptions': {r: descs[i].strip() for r, i in roles.items()
                                if i < len(descs) and descs[i].strip()}}
@@ -113,24 +119,39 @@ def _line2(path, line, pyfmt, fmt):
     return period, start, announced
 
 
-def _roles(path, columns, tag):
+def _roles(path, columns, tag, given):
     roles, flags, notes, ignored = {}, {}, [], []
+    for signal, name in given.items():
+        if signal == 't':
+            notes.append('--columns t ignored: the time of a historian export is its first '
+                         'column')
+            continue
+        hits = [i for i, c in enumerate(columns) if c.lower() == name.strip().lower()]
+        if len(hits) != 1:
+            raise InputError(f'{path}: --columns {signal}={name}: '
+                             + ('no such tag' if not hits else f'{len(hits)} tags are so named')
+                             + f' in line 3; tags: {", ".join(repr(c) for c in columns)}')
+        roles[signal] = hits[0]
     for i, col in enumerate(columns):
+        if i in roles.values():
+            continue
         role = FLAGS.get(col.lower())
         if role is not None:
             flags[col] = i
             continue
         role = ROLES.get(col.rsplit('.', 1)[-1].upper()) if '.' in col else None
-        if role is None:
+        if role is None or role in given:
             ignored.append(col)
         elif role in roles:
             raise InputError(f'{path}: line 3: two {role} columns: '
-                             f'{columns[roles[role]]!r} and {col!r}')
+                             f'{columns[roles[role]]!r} and {col!r}; choose with --columns '
+                             f'{role}={columns[roles[role]]}')
         else:
             roles[role] = i
     if 'op' not in roles:
         raise InputError(f'{path}: no controller output column ({tag or "<TAG>"}.MV) in line 3; '
-                         f'columns: {", ".join(repr(c) for c in columns)}')
+                         f'columns: {", ".join(repr(c) for c in columns)}; name it with '
+                         '--columns op=TAG')
     if ignored:
         notes.append('ignored columns: ' + ', '.join(ignored))
     return roles, flags, notes
