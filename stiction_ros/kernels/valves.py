@@ -42,6 +42,9 @@ def kano_run(u: Floats, y: Floats, st: Floats, S: float, J: float, a: float) -> 
 def choudhury_run(u: Floats, y: Floats, st: Floats, S: float, J: float, lam: float, ma_in: bool,
                   char: int, rangeability: float, ma_out: bool) -> None:
     """Choudhury's model (``stiction_ros.models.choudhury`` state layout)."""
+    if lam == 1.0 and not ma_in and not ma_out and char == 0:
+        _choudhury_plain(u, y, st, S, J)
+        return
     fd = 0.5 * (S - J)
     out, pos, xprev, sprev, xss, stuck, direction, xf = (st[0], st[1], st[2], st[3], st[4],
                                                          st[5], st[6], st[7])
@@ -75,6 +78,49 @@ def choudhury_run(u: Floats, y: Floats, st: Floats, S: float, J: float, lam: flo
         y[k] = out
     st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7] = (out, pos, xprev, sprev, xss,
                                                               stuck, direction, xf)
+
+
+@njit(cache=True)
+def _choudhury_plain(u: Floats, y: Floats, st: Floats, S: float, J: float) -> None:
+    """
+    Run :func:`choudhury_run` for % in and out, no prefilter and a linear characteristic.
+
+    The common case, with the unit conversions, the filter and the characteristic
+    left out rather than evaluated as identities every sample (docs/BENCHMARKS.md has
+    the speed), with the same result to the bit (the filter with lambda 1 passes the
+    input exactly, and the linear characteristic is the position).
+    """
+    fd = 0.5 * (S - J)
+    pos, xprev, sprev, xss, stuck, direction, x = (st[1], st[2], st[3], st[4], st[5], st[6],
+                                                   st[7])
+    for k in range(u.shape[0]):
+        x = u[k]
+        dx = x - xprev
+        s = 0.0 if dx == 0.0 else math.copysign(1.0, dx)
+        if x <= 0.0 or x >= 100.0:
+            d = -1.0 if x <= 0.0 else 1.0
+            pos = 0.0 if x <= 0.0 else 100.0
+            stuck = 1.0
+            direction = d
+            xss = pos + d * fd
+        else:
+            if stuck == 0.0 and s != sprev:
+                stuck = 1.0
+                xss = xprev
+            if stuck == 1.0:
+                d = _breakaway(direction, x - xss, S, J)
+                if d != 0.0:
+                    direction = d
+                    stuck = 0.0
+            if stuck == 0.0:
+                pos = _clip(x - direction * fd)
+        sprev = s
+        xprev = x
+        y[k] = pos
+    if u.shape[0]:
+        st[0] = pos
+    st[1], st[2], st[3], st[4], st[5], st[6], st[7] = (pos, xprev, sprev, xss, stuck,
+                                                       direction, x)
 
 
 @njit(cache=True)
