@@ -27,6 +27,7 @@ import numpy as np
 from stiction_ros.analysis.detection import dataset, FEATURE_NAMES, load_model
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.cli.accuracy_markdown import markdown
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
 from stiction_ros.study.accuracy_study import (
     best_threshold, by_kind, per_tag, score, sim_rows)
@@ -85,9 +86,10 @@ def plant_rows(cases, cv_pred, stuck_threshold):
     return rows
 
 
+@pipe_safe
 def main(argv=None):
     """Entry point."""
-    p = argparse.ArgumentParser(prog='stiction-accuracy', description=__doc__.split('\n')[1])
+    p = argparse.ArgumentParser(prog='stiction-accuracy', description=description(__doc__))
     p.add_argument('data', nargs='?', default=str(DEFAULT_DATA))
     p.add_argument('--reports', default='out/plant_loops')
     p.add_argument('--markdown', default='docs/ACCURACY.md')

@@ -28,6 +28,7 @@ from stiction_ros.app.analyze import (
 from stiction_ros.app.batch import analyze_many, expand
 from stiction_ros.app.report_files import write_json
 from stiction_ros.app.report_text import batch_row_text, summary_line
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import DetectorFileError, StictionError
 
 EXIT_INPUT = 2
@@ -65,7 +66,7 @@ exit status:
 
 def parser() -> argparse.ArgumentParser:
     """Return the argument parser."""
-    p = argparse.ArgumentParser(prog='stiction-analyze', description=__doc__.split('\n')[1],
+    p = argparse.ArgumentParser(prog='stiction-analyze', description=description(__doc__),
                                 epilog=EPILOG,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('input', help='rosbag2 directory, .mcap file, CSV or historian export '
@@ -143,6 +144,7 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
     return EXIT_INPUT if failed else 0
 
 
+@pipe_safe
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stiction-analyze``."""
     args = parser().parse_args(argv)

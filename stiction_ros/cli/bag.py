@@ -13,6 +13,7 @@ import sys
 from stiction_ros.bag.reader import BagReadError, read_bag
 from stiction_ros.bag.repair import repair_bag
 from stiction_ros.bag.writer import BagError
+from stiction_ros.cli.text import description, pipe_safe
 
 
 def info(path):
@@ -29,9 +30,10 @@ def info(path):
     return '\n'.join(lines)
 
 
+@pipe_safe
 def main(argv=None):
     """Run the command; return the process exit code."""
-    ap = argparse.ArgumentParser(prog='stiction-bag', description=__doc__.split('\n')[1])
+    ap = argparse.ArgumentParser(prog='stiction-bag', description=description(__doc__))
     sub = ap.add_subparsers(dest='command', required=True)
     sub.add_parser('info', help='topics, types and message counts').add_argument('bag')
     rp = sub.add_parser('repair', help='rebuild the index and metadata.yaml of a killed bag')

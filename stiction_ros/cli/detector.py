@@ -21,12 +21,13 @@ import numpy as np
 
 from stiction_ros.analysis.detection import dataset, model_file
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-detector', description=__doc__.split('\n')[1])
+    p = argparse.ArgumentParser(prog='stiction-detector', description=description(__doc__))
     p.add_argument('--out', default=str(model_file.DEFAULT_PATH),
                    help='model file to write (default: the shipped one)')
     p.add_argument('--train', type=int, default=len(dataset.TRAIN),
@@ -76,6 +77,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     return model, figures
 
 
+@pipe_safe
 def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)

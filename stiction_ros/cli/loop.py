@@ -29,6 +29,7 @@ import time
 
 from stiction_ros.app.live_summary import format_summary, summarise
 from stiction_ros.bag.reader import read_bag
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import LoopError, StictionError
 from stiction_ros.sim.launch_plan import resolve_config
 from stiction_ros.sim.loop_config import ConfigError, load_loop, parse_overrides
@@ -287,9 +288,10 @@ def _terminate(signum, frame):
     raise Terminated
 
 
+@pipe_safe
 def main(argv=None):
     """Run the command; return the process exit code."""
-    ap = argparse.ArgumentParser(prog='loop', description=__doc__.split('\n')[1])
+    ap = argparse.ArgumentParser(prog='loop', description=description(__doc__))
     ap.add_argument('config', help='loop description (YAML): a path, or the name of a '
                     'shipped file, e.g. concentration_loop.yaml')
     ap.add_argument('--case', help='a case from the "cases" section of the file')

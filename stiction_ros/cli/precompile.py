@@ -10,11 +10,14 @@ Where the package directory is read-only, numba keeps the cache in
 import argparse
 import sys
 
+from stiction_ros.cli.text import description, pipe_safe
 
+
+@pipe_safe
 def main(argv: list[str] | None = None) -> int:
     """Run the command; return the process exit code."""
     ap = argparse.ArgumentParser(prog='stiction-precompile',
-                                 description=__doc__.strip().split('\n')[0].split(': ', 1)[1])
+                                 description=description(__doc__))
     ap.parse_args(argv)
     from stiction_ros.app.precompile import precompile
 

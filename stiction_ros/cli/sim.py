@@ -10,6 +10,7 @@ Examples::
 import argparse
 import sys
 
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.models import ModelError
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
 from stiction_ros.sim.launch_plan import resolve_config
@@ -24,9 +25,10 @@ def _progress(done, total):
         sys.stderr.write('\n')
 
 
+@pipe_safe
 def main(argv=None):
     """Run the command; return the process exit code."""
-    ap = argparse.ArgumentParser(prog='stiction-sim', description=__doc__.split('\n')[0])
+    ap = argparse.ArgumentParser(prog='stiction-sim', description=description(__doc__))
     ap.add_argument('config', help='loop description (YAML): a path, or the name of a '
                     'shipped file, e.g. concentration_loop.yaml')
     ap.add_argument('--case', help='a case from the file\'s "cases" section')

@@ -2,7 +2,8 @@
 ``stiction-study``: reproduce the chapter's Table 2.1 / Fig. 2.3 study.
 
 Writes ``REPRODUCTION.md``, ``reproduction.json`` and ``figures/*.png`` under
-``--out`` (default ``docs``).
+``--out`` (default ``out/study``; ``make reproduce`` writes the committed copy in
+``docs``).
 """
 
 import argparse
@@ -13,6 +14,7 @@ from pathlib import Path
 import platform
 import sys
 
+from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.resources import config_file
 from stiction_ros.study.reproduction import run_study, write_report
 
@@ -31,11 +33,13 @@ def machine_description():
     return f'{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}'
 
 
+@pipe_safe
 def main(argv=None):
     """Run the study; return the exit code."""
-    ap = argparse.ArgumentParser(prog='stiction-study', description=__doc__.split('\n')[1])
+    ap = argparse.ArgumentParser(prog='stiction-study', description=description(__doc__))
     ap.add_argument('--config', default=None, help='loop file (default: concentration_loop.yaml)')
-    ap.add_argument('--out', default='docs', help='output directory (default: docs)')
+    ap.add_argument('--out', default='out/study',
+                    help='output directory (default: out/study; `make reproduce` uses docs)')
     args = ap.parse_args(argv)
     config = Path(args.config) if args.config else config_file('concentration_loop.yaml')
     out = Path(args.out)
