@@ -39,6 +39,30 @@ def kano_run(u: Floats, y: Floats, st: Floats, S: float, J: float, a: float) -> 
 
 
 @njit(cache=True)
+def _choudhury_step(x: float, xprev: float, sprev: float, pos: float, xss: float,
+                    stuck: float, direction: float, S: float, J: float,
+                    fd: float) -> tuple[float, float, float, float, float]:
+    """Return ``(pos, xss, stuck, direction, slope sign)`` after filtered input ``x``."""
+    dx = x - xprev
+    s = 0.0 if dx == 0.0 else math.copysign(1.0, dx)
+    if x <= 0.0 or x >= 100.0:
+        d = -1.0 if x <= 0.0 else 1.0
+        pos = 0.0 if x <= 0.0 else 100.0
+        return pos, pos + d * fd, 1.0, d, s
+    if stuck == 0.0 and s != sprev:
+        stuck = 1.0
+        xss = xprev
+    if stuck == 1.0:
+        d = _breakaway(direction, x - xss, S, J)
+        if d != 0.0:
+            direction = d
+            stuck = 0.0
+    if stuck == 0.0:
+        pos = _clip(x - direction * fd)
+    return pos, xss, stuck, direction, s
+
+
+@njit(cache=True)
 def choudhury_run(u: Floats, y: Floats, st: Floats, S: float, J: float, lam: float, ma_in: bool,
                   char: int, rangeability: float, ma_out: bool) -> None:
     """Choudhury's model (``stiction_ros.models.choudhury`` state layout)."""
@@ -52,26 +76,8 @@ def choudhury_run(u: Floats, y: Floats, st: Floats, S: float, J: float, lam: flo
         uin = (u[k] - 4.0) * 6.25 if ma_in else u[k]
         x = lam * uin + (1.0 - lam) * xf
         xf = x
-        dx = x - xprev
-        s = 0.0 if dx == 0.0 else math.copysign(1.0, dx)
-        if x <= 0.0 or x >= 100.0:
-            d = -1.0 if x <= 0.0 else 1.0
-            pos = 0.0 if x <= 0.0 else 100.0
-            stuck = 1.0
-            direction = d
-            xss = pos + d * fd
-        else:
-            if stuck == 0.0 and s != sprev:
-                stuck = 1.0
-                xss = xprev
-            if stuck == 1.0:
-                d = _breakaway(direction, x - xss, S, J)
-                if d != 0.0:
-                    direction = d
-                    stuck = 0.0
-            if stuck == 0.0:
-                pos = _clip(x - direction * fd)
-        sprev = s
+        pos, xss, stuck, direction, sprev = _choudhury_step(x, xprev, sprev, pos, xss, stuck,
+                                                            direction, S, J, fd)
         xprev = x
         flow = _characteristic(char, pos, rangeability)
         out = 4.0 + flow * 0.16 if ma_out else flow
@@ -95,26 +101,8 @@ def _choudhury_plain(u: Floats, y: Floats, st: Floats, S: float, J: float) -> No
                                                    st[7])
     for k in range(u.shape[0]):
         x = u[k]
-        dx = x - xprev
-        s = 0.0 if dx == 0.0 else math.copysign(1.0, dx)
-        if x <= 0.0 or x >= 100.0:
-            d = -1.0 if x <= 0.0 else 1.0
-            pos = 0.0 if x <= 0.0 else 100.0
-            stuck = 1.0
-            direction = d
-            xss = pos + d * fd
-        else:
-            if stuck == 0.0 and s != sprev:
-                stuck = 1.0
-                xss = xprev
-            if stuck == 1.0:
-                d = _breakaway(direction, x - xss, S, J)
-                if d != 0.0:
-                    direction = d
-                    stuck = 0.0
-            if stuck == 0.0:
-                pos = _clip(x - direction * fd)
-        sprev = s
+        pos, xss, stuck, direction, sprev = _choudhury_step(x, xprev, sprev, pos, xss, stuck,
+                                                            direction, S, J, fd)
         xprev = x
         y[k] = pos
     if u.shape[0]:
