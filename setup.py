@@ -46,7 +46,8 @@ setup(
         ('share/' + package_name + '/' + folder, glob(folder + '/*.yaml'))
         for folder in sorted(glob('config/params/*'))
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap', 'numba'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'mcap', 'numba',
+                      'rich'],
     zip_safe=True,
     maintainer='stiction_ros developers',
     maintainer_email='dev@stiction-ros.invalid',

@@ -157,8 +157,10 @@ def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
     assert 0.0 <= st['probability'] <= 1.0
     assert st['detector']['judgeable']['ok'] and st['evidence']
     assert 'signature_vote' in st
-    # The terminal line says the answer with its probability; the page shows the evidence.
+    # The terminal says the answer with its probability and the first evidence; the page
+    # shows all of it.
     assert f'{st["answer"]} (probability {st["probability"]:.2f})' in res.stdout
+    assert f'\n  evidence: {st["evidence"][0]}\n' in res.stdout
     assert 'Evidence' in (tmp_path / 'r.html').read_text()
 
 

@@ -17,7 +17,7 @@ import sys
 import pytest
 
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
-from stiction_ros.app.report_text import summary_line, to_json_text
+from stiction_ros.app.report_text import summary_text, to_json_text
 from stiction_ros.errors import InputError, StictionError
 from test_analyze_cli import analyze, loop_csv
 
@@ -51,8 +51,10 @@ def test_the_report_is_the_one_the_command_line_writes(loop):
     assert _untimed(app) == _untimed(cli)
     # The returned report is the one written, and the printed verdict is the command's.
     assert _untimed(json.loads(to_json_text(analysis.report))) == _untimed(app)
-    assert summary_line(analysis.report) == res.stdout.rstrip('\n')
+    assert summary_text(analysis.report, [str(loop / 'cli.json')]) == res.stdout.rstrip('\n')
     assert said[0] == f'reading {loop / "loop.csv"}' and said[-1] == f'wrote {loop / "app.json"}'
+    # The search is said once per level, naming the model.
+    assert [s for s in said if s.startswith('kano: search level 1/')]
     assert [f['model'] for f in app['fits']] == ['kano']
 
 

@@ -300,13 +300,21 @@ def given_fit(op, mv, model, S, J, segments=None, sample_time=1.0, filter_value=
 
 
 def mse_landscape(op, mv, fit, segments=None, sample_time=1.0, half_width=0.5, points=51):
-    """Return the MSE on a grid around ``fit`` and the 95 % bound, for the report's figure."""
+    """
+    Return the MSE on a grid around ``fit``, the 95 % bound and the ceiling, for the report.
+
+    Points past ``ceiling`` (an MSE) are abandoned and hold the ceiling.
+    """
     problem = ValveProblem(fit.model, op, mv, segments, fit.filter_value, sample_time)
     s_ax = np.linspace(max(0.0, fit.S - half_width), fit.S + half_width, points)
     j_ax = np.linspace(max(0.0, fit.J - half_width), fit.J + half_width, points)
-    # Abandon far-off points: the colour scale saturates there anyway.
-    cap = max(fit.mse, 1e-12) * 1e4 * problem.n
+    # Abandon far-off points: 1e4 times the best MSE, but never below ten times MV's
+    # variance (that of a valve frozen at its mean), so a fit near MSE 0 still gets a
+    # landscape rather than one flat ceiling.
+    y = np.concatenate([problem.mv[a:b] for a, b in zip(problem.starts, problem.stops)])
+    ceiling = max(fit.mse * 1e4, 10.0 * float(np.var(y)) if len(y) else 0.0, 1e-12)
+    cap = ceiling * problem.n
     mse = np.minimum(problem.grid(s_ax, j_ax, cap), cap) / problem.n
     bound = fit.mse * math.exp(CHI2_95_2DOF / problem.n)
     return {'model': fit.model, 'S': s_ax, 'J': j_ax, 'mse': np.maximum(mse, 1e-12),
-            'bound': bound, 'best': (fit.S, fit.J)}
+            'bound': bound, 'best': (fit.S, fit.J), 'ceiling': ceiling}

@@ -19,14 +19,17 @@ from dataclasses import dataclass
 import math
 import numbers
 import os
+import re
 import time
 from typing import Callable, TYPE_CHECKING
 
+from stiction_ros.app.progress import print_nothing, Step
 from stiction_ros.app.report_files import write_html, write_json
 from stiction_ros.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
-    from stiction_ros.analysis.pipeline import Analysis
+    from stiction_ros.analysis.pipeline import Analysis, Options
+    from stiction_ros.analysis.record import Record
 
 # The same choices as stiction_ros.analysis.pipeline.Options; repeated here so that
 # making and checking options does not load the analysis (about a second).
@@ -39,10 +42,16 @@ COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp')
 COLUMNS_FIX = 'write SIGNAL=COLUMN pairs, e.g. --columns op=FIC101.OP,pv=FIC101.PV,t=Timestamp'
 
 Say = Callable[[str], None]
-
-
-def print_nothing(msg: str) -> None:
-    """Drop a progress line (the default ``say`` of the app functions)."""
+# How many EWMA weights fit_models (stiction_ros.analysis.pipeline) tries for Choudhury's
+# model with --fit-filter, one search each (Kano's lags are its FILTER_TAUS).
+CHOUDHURY_FILTER_SEARCHES = 8
+# identify.search's grid: its resolution and coarse points (its defaults, as the pipeline
+# calls it); the levels shown as 'level 2/5' follow from them.
+SEARCH_RESOLUTION = 0.01
+SEARCH_COARSE_POINTS = 96
+# The candidate-fit lines of stiction_ros.analysis.mismatch.explain.fit_many.
+FITTED = re.compile(r'(?:bootstrap (?P<rep>\d+)/(?P<reps>\d+): )?fitted (?P<effect>\S+) '
+                    r'\((?P<done>\d+)/(?P<total>\d+)\)')
 
 
 def default_jobs() -> int:
@@ -277,7 +286,7 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
         + (f' ({sampling})' if sampling else '') + ', signals '
         f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
     analysis = analyze(record, pipeline_options,
-                       progress=lambda level, n: say(f'  search level {level}: {n} evaluations'))
+                       progress=SearchSteps(record, pipeline_options, say))
     report = analysis.report
     if options.explain:
         run_explain(analysis, options, say)
@@ -314,6 +323,79 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
     sections, arrays = explain_record(rec.t, rec.signals['op'], rec.signals['mv'],
                                       rec.valve_segments(min_samples=2), rec.sample_time,
                                       holdout=options.holdout, reps=options.bootstrap,
-                                      progress=say, jobs=jobs)
+                                      progress=lambda msg: say(explain_step(msg)), jobs=jobs)
     analysis.report.update(sections)
     analysis.explain_arrays = arrays
+
+
+def explain_step(msg: str) -> str:
+    """Return an ``--explain`` progress line, its candidate fits as one counted :class:`Step`."""
+    m = FITTED.fullmatch(msg)
+    if m is None:
+        return msg
+    done, total = int(m['done']), int(m['total'])
+    detail = '' if done >= total else m['effect'] + (
+        f' (bootstrap replicate {m["rep"]}/{m["reps"]})' if m['rep'] else '')
+    return Step('candidate fits', done, total, detail)
+
+
+def search_levels(record: Record) -> int:
+    """Return how many refinement levels identify's search runs on ``record`` (0: none)."""
+    import numpy as np
+
+    from stiction_ros.analysis.identify import plausible_box
+    from stiction_ros.errors import StictionError
+    op, mv = record.signals['op'], record.signals['mv']
+    segments = record.valve_segments(min_samples=2)
+    if not segments:
+        return 0
+    used = np.concatenate([np.arange(a, b) for a, b in segments])
+    try:
+        s_max, j_max = plausible_box(op[used], mv[used])
+    except StictionError:
+        return 0
+    res = SEARCH_RESOLUTION
+    step = res * max(1, round(max(res, max(s_max, j_max) / SEARCH_COARSE_POINTS) / res))
+    levels = 0
+    while step > res:
+        levels += 1
+        step = res * max(1, round(step / 5 / res))
+    return levels
+
+
+class SearchSteps:
+    """
+    The pipeline's search progress ``(level, evaluations)`` as steps naming the model.
+
+    ``fit_models`` searches each model in turn (once per filter value with
+    ``--fit-filter``); a level that does not follow the last one starts the
+    next search, so the model searched is known from the count of searches.
+    """
+
+    def __init__(self, record: Record, options: Options, say: Say) -> None:
+        from stiction_ros.analysis.pipeline import FILTER_TAUS
+        self.say = say
+        self.models = options.models
+        filters = {'kano': len(FILTER_TAUS), 'choudhury': CHOUDHURY_FILTER_SEARCHES}
+        self.per_model = {m: filters[m] if options.fit_filter else 1 for m in self.models}
+        self.levels = search_levels(record) if record.has('mv') else 0
+        self.search, self.last = -1, None
+
+    def __call__(self, level: int, evaluations: int) -> None:
+        """Say which model's search reached ``level`` after ``evaluations`` evaluations."""
+        if self.last is None or level <= self.last:
+            self.search += 1
+        self.last = level
+        self.levels = max(self.levels, level)
+        i, model = self.search, self.models[-1]
+        for name in self.models:
+            if i < self.per_model[name]:
+                model = name
+                break
+            i -= self.per_model[name]
+        # With --fit-filter one bar runs over the levels of every filter value's search.
+        per = self.per_model[model]
+        i = min(i, per - 1)
+        which = f'filter {i + 1}/{per}, ' if per > 1 else ''
+        self.say(Step(f'{model}: search level', i * self.levels + level, per * self.levels,
+                      f'{which}{evaluations} evaluations'))

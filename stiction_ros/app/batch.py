@@ -15,11 +15,11 @@ from dataclasses import dataclass, replace
 import glob
 from pathlib import Path
 import re
-import sys
 import time
 
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
+from stiction_ros.app.progress import Step
 from stiction_ros.app.report_files import write_json
 from stiction_ros.app.report_text import summary_line, VERDICT_WORDS
 from stiction_ros.errors import InputError, StictionError
@@ -134,15 +134,13 @@ def _results(paths, options, jobs, scheduler, out_dir, root):
             yield analyze_one(p, options, out_dir, root)
 
 
-def progress_line(done: int, total: int, elapsed: float, row: dict) -> str:
-    """Return the progress bar after ``done`` of ``total`` recordings."""
-    width = 24
-    filled = int(width * done / total)
+def progress_step(done: int, total: int, elapsed: float, row: dict) -> Step:
+    """Return the progress after ``done`` of ``total`` recordings, the last one's verdict."""
     rate = done / elapsed if elapsed > 0 else 0.0
     eta = (total - done) / rate if rate > 0 else 0.0
     verdict = VERDICT_WORDS[row['detected']] if row['ok'] else 'error'
-    return (f'[{"#" * filled}{"." * (width - filled)}] {done}/{total} {rate:.2f}/s '
-            f'ETA {eta:.0f} s  {Path(row["input"]).name}: {verdict}')
+    return Step('recordings', done, total,
+                f'{rate:.2f}/s, ETA {eta:.0f} s; {Path(row["input"]).name}: {verdict}')
 
 
 def run_batch(paths: list[str], options: AnalyzeOptions, jobs: int = 1,
@@ -151,21 +149,15 @@ def run_batch(paths: list[str], options: AnalyzeOptions, jobs: int = 1,
     """
     Analyse every path with ``options``; return (rows in the order of ``paths``, seconds).
 
-    ``say`` receives a progress line per finished recording (on a terminal the
-    bar is redrawn on stderr instead); None: no progress at all.
+    ``say`` receives a counted :class:`~stiction_ros.app.progress.Step` per
+    finished recording (a terminal draws them as one bar); None: no progress.
     """
     t0 = time.perf_counter()
     rows = {}
-    tty = sys.stderr.isatty()
     for row in _results(paths, options, jobs, scheduler, out_dir, root):
         rows[row['input']] = row
         if say is not None:
-            line = progress_line(len(rows), len(paths), time.perf_counter() - t0, row)
-            if tty:
-                print('\r' + line, end='' if len(rows) < len(paths) else '\n',
-                      file=sys.stderr, flush=True)
-            else:
-                say(line)
+            say(progress_step(len(rows), len(paths), time.perf_counter() - t0, row))
     return [rows[str(p)] for p in paths], time.perf_counter() - t0
 
 

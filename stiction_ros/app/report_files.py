@@ -15,6 +15,8 @@ from stiction_ros.app.report_text import to_json_text
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
     from stiction_ros.analysis.pipeline import Analysis
 
+FIGURE_NAMES = ('trends', 'maps', 'mismatch', 'signatures')
+
 
 def write_text(path: str | Path, text: str) -> None:
     """Write ``text`` and a final newline to ``path`` (UTF-8), creating its folder."""
@@ -26,6 +28,16 @@ def write_text(path: str | Path, text: str) -> None:
 def write_json(path: str | Path, report: dict) -> None:
     """Write ``report`` as the indented JSON of :func:`to_json_text` to ``path``."""
     write_text(path, to_json_text(report))
+
+
+def landscapes(analysis: Analysis) -> list[dict]:
+    """Return the MSE landscape around each identified fit (:func:`identify.mse_landscape`)."""
+    # Imported here: the landscape search is needed only for --html.
+    from stiction_ros.analysis.identify import mse_landscape
+    rec = analysis.record
+    return [mse_landscape(rec.signals['op'], rec.signals['mv'], fit,
+                          rec.valve_segments(min_samples=2), rec.sample_time)
+            for fit in analysis.fits if fit.source == 'identified']
 
 
 def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None]) -> Path:
@@ -47,8 +59,7 @@ def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None])
         The HTML file written.
 
     """
-    # Imported here: matplotlib and the landscape search are needed only for --html.
-    from stiction_ros.analysis.identify import mse_landscape
+    # Imported here: matplotlib is needed only for --html.
     from stiction_ros.viz import figures
     from stiction_ros.viz.mismatch_figures import mismatch_figure
     from stiction_ros.viz.report_html import render
@@ -66,11 +77,15 @@ def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None])
         x = analysis.signature_inputs
         paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
                                       fig_dir / 'signatures.png'))
-    for fit in analysis.fits:
-        if fit.source == 'identified':
-            land = mse_landscape(rec.signals['op'], rec.signals['mv'], fit,
-                                 rec.valve_segments(min_samples=2), rec.sample_time)
-            paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{fit.model}.png'))
+    for land in landscapes(analysis):
+        paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{land["model"]}.png'))
+    drawn = {Path(p).name for p in paths if p}
+    # A figure of an earlier run that this one does not draw (mismatch.png, before a run
+    # without --explain) would sit beside the page unexplained; only the report's own go.
+    for old in fig_dir.glob('*.png'):
+        if old.name not in drawn and (old.stem in FIGURE_NAMES
+                                      or old.stem.startswith('landscape_')):
+            old.unlink()
     write_text(html_path, render(analysis.report, [p for p in paths if p]))
     say(f'wrote {html_path} (figures in {fig_dir})')
     return html_path

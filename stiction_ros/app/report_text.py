@@ -2,11 +2,15 @@
 The analyzer's report as text: the JSON file and the verdict printed at the end.
 
 Pure formatting of the report dict (see the README for its fields): nothing
-here reads a recording, analyses or writes a file.
+here reads a recording, analyses or writes a file.  :func:`summary_text` is
+what ``stiction-analyze`` prints for one recording; :func:`summary_line`, the
+same verdict without the labelled lines, is each recording's row in a batch.
 """
 
+from collections.abc import Sequence
 import json
 import math
+import textwrap
 
 import numpy as np
 
@@ -39,7 +43,7 @@ def to_json_text(report: dict) -> str:
 
 def summary_line(report: dict) -> str:
     """
-    Return the verdict printed at the end of ``stiction-analyze``.
+    Return the verdict of one recording as a row of a batch (``stiction-analyze DIR``).
 
     Parameters
     ----------
@@ -54,17 +58,9 @@ def summary_line(report: dict) -> str:
 
     """
     st = report['stiction']
-    word = VERDICT_WORDS[st['detected']]
     fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                      for f in report['fits'])
-    if st.get('probability') is not None:
-        how = f'probability {st["probability"]:.2f}'
-    elif st['detected'] is None:
-        how = st.get('reason', '')
-    else:
-        how = f'score {st["score"]:.2f}'
-    line = (f'{report.get("name") or report["input"].get("path")}: {word} ({how})'
-            + (f'; {fits}' if fits else ''))
+    line = _verdict(report) + (f'; {fits}' if fits else '')
     for ev in st.get('evidence', [])[:2]:
         line += f'\n  evidence: {ev}'
     if st.get('size_withheld'):
@@ -74,6 +70,124 @@ def summary_line(report: dict) -> str:
     elif 'mismatch' in report:
         line += _mismatch_lines(report)
     return line
+
+
+EVIDENCE_LINES = 3
+LABEL_WIDTH = 10
+
+
+def summary_text(report: dict, files: Sequence[str] = (), width: int | None = None) -> str:
+    """
+    Return the summary ``stiction-analyze`` prints at the end of one recording.
+
+    Parameters
+    ----------
+    report : dict
+        The report of one recording (``Analysis.report``).
+    files : sequence of str
+        The report files written (JSON, HTML), named on the ``report`` line.
+    width : int, optional
+        Wrap every line to this many characters (a terminal's width); None: no wrapping.
+
+    Returns
+    -------
+    str
+        The verdict with its probability or score, then one labelled line each:
+        the fits, the evidence (which test saw what, and where), the apparent
+        S and J with the model they come from, the excluded stretches and the
+        report files; after ``--explain``, the located and named mismatch.
+
+    """
+    st = report['stiction']
+    lines = [_verdict(report)]
+
+    def add(label, text):
+        lines.append(f'  {label + ":" if label else "":<{LABEL_WIDTH}}{text}')
+    if report['fits']:
+        add('fits', '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
+                              for f in report['fits']))
+    evidence = st.get('evidence') or []
+    # 'cannot tell' has its reason on the first line already.
+    if not evidence and st['detected'] is not None:
+        add('why', st.get('reason', ''))
+    for ev in evidence[:EVIDENCE_LINES]:
+        add('evidence', ev)
+    if len(evidence) > EVIDENCE_LINES:
+        add('', f'(and {len(evidence) - EVIDENCE_LINES} more in the report)')
+    add('size', size_text(report))
+    add('excluded', excluded_text(report))
+    add('report', ', '.join(files) if files else 'no file written (--json FILE, --html FILE)')
+    text = '\n'.join(lines)
+    if 'mismatch' in report and 'baseline' not in report:
+        text += f'\nmismatch: cannot tell: {report["mismatch"]["explanation"]}'
+    elif 'mismatch' in report:
+        text += _mismatch_lines(report)
+    if width is None:
+        return text
+    out = []
+    for line in text.split('\n'):
+        # A labelled line continues under its text, any other one a little indented.
+        indent = ' ' * (2 + LABEL_WIDTH if line.startswith('  ') else 4)
+        out += textwrap.wrap(line, width, subsequent_indent=indent,
+                             break_on_hyphens=False) or ['']
+    return '\n'.join(out)
+
+
+def _verdict(report):
+    st = report['stiction']
+    if st.get('probability') is not None:
+        how = f'probability {st["probability"]:.2f}'
+    elif st['detected'] is None:
+        how = st.get('reason', '')
+    else:
+        how = f'score {st["score"]:.2f}'
+    name = report.get('name') or report['input'].get('path')
+    return f'{name}: {VERDICT_WORDS[st["detected"]]} ({how})'
+
+
+def size_text(report: dict) -> str:
+    """Return the apparent S and J of ``report`` with the model they come from, or why none."""
+    st = report['stiction']
+    if report['fits']:
+        best = min(report['fits'], key=lambda f: f['mse'])
+        how = 'given' if best.get('source') == 'given' else 'identified from MV'
+        ranges = ''
+        if best.get('S_interval') and best.get('J_interval'):
+            (s0, s1), (j0, j1) = best['S_interval'], best['J_interval']
+            ranges = f'; 95 %: S {s0:.2f}-{s1:.2f}, J {j0:.2f}-{j1:.2f}'
+        return f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
+    withheld = st.get('size_withheld')
+    if withheld:
+        # 'cannot tell' says the same reason on the first line.
+        return ('not given (the record cannot be judged)' if withheld == st.get('reason')
+                else f'not given: {withheld}')
+    ham, apparent = st.get('hammerstein'), st.get('apparent_S')
+    if (apparent is not None and ham and ham.get('reliable')
+            and math.isclose(ham['S'], apparent, rel_tol=1e-9)):
+        return (f'S={ham["S"]:.2f} % J={ham["J"]:.2f} % (Hammerstein: kano and an ARX plant, '
+                'from OP and PV)')
+    if apparent is not None:
+        return (f'S about {apparent:.2f} % of OP (width of the PV-OP ellipse); J needs MV or a '
+                'reliable Hammerstein fit')
+    if ham and ham.get('S') is not None:
+        return (f'not given: the Hammerstein fit (S={ham["S"]:.2f} % J={ham["J"]:.2f} %) is '
+                'unreliable, see stiction.hammerstein.reason')
+    return 'not given'
+
+
+def excluded_text(report: dict) -> str:
+    """Return how many stretches were excluded, how long in all, and why."""
+    excluded = report.get('excluded') or []
+    ts = report['sample_time']
+    if not excluded:
+        return f'nothing ({report["samples"]} samples at {ts:g} s)'
+    n = sum(e['samples'] for e in excluded)
+    reasons: dict = {}
+    for e in excluded:
+        reasons[e['reason']] = reasons.get(e['reason'], 0) + 1
+    why = '; '.join(f'{r} ({k})' for r, k in sorted(reasons.items(), key=lambda x: -x[1]))
+    return (f'{len(excluded)} stretch{"es" if len(excluded) > 1 else ""}, {n * ts:g} s in all '
+            f'({100 * n / report["samples"]:.1f} % of {report["samples"]} samples): {why}')
 
 
 def _mismatch_lines(report):

@@ -25,9 +25,9 @@ import sys
 
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, LOOP_TYPES, MODEL_CHOICES, Say)
-from stiction_ros.app.batch import analyze_many, expand
+from stiction_ros.app.batch import analyze_many, Batch, expand
 from stiction_ros.app.report_files import write_json
-from stiction_ros.app.report_text import batch_row_text, summary_line
+from stiction_ros.app.report_text import batch_row_text
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import DetectorFileError, StictionError
 
@@ -128,9 +128,17 @@ def options_from_args(args: argparse.Namespace) -> AnalyzeOptions:
 
 
 def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str],
-             say: Say) -> int:
-    """Analyse every recording in ``paths``; print a line each; return the exit status."""
+             say: Say) -> Batch:
+    """Analyse every recording in ``paths``; write the ``--json`` summary; return the batch."""
     batch = analyze_many(options, paths, args.scheduler, args.out_dir, say)
+    if options.json_path:
+        write_json(options.json_path, batch.summary())
+        say(f'wrote {options.json_path}')
+    return batch
+
+
+def print_many(batch: Batch) -> int:
+    """Print a line per recording and the tally; return the exit status."""
     for row in batch.rows:
         print(batch_row_text(row))
     failed, where = batch.failed, batch.workers
@@ -138,9 +146,6 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
     print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
           + ', '.join(f'{n} {w}' for w, n in sorted(batch.tally().items()))
           + (f', {failed} failed' if failed else ''))
-    if options.json_path:
-        write_json(options.json_path, batch.summary())
-        say(f'wrote {options.json_path}')
     return EXIT_INPUT if failed else 0
 
 
@@ -148,16 +153,20 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stiction-analyze``."""
     args = parser().parse_args(argv)
-
-    def say(msg):
-        if not args.quiet:
-            print(msg, file=sys.stderr, flush=True)
+    # Imported here: --help needs neither.
+    from stiction_ros.app.progress import terminal_progress, terminal_width
+    from stiction_ros.app.report_text import summary_text
+    batch = None
     try:
-        options = options_from_args(args)
-        paths = expand(options.input)
-        if paths is not None:
-            return run_many(args, options, paths, say)
-        report = analyze_file(options, say).report
+        # The progress display ends before anything goes to stdout: on a terminal both
+        # share the screen, and the live status line would cut through the answer.
+        with terminal_progress(enabled=not args.quiet) as say:
+            options = options_from_args(args)
+            paths = expand(options.input)
+            if paths is not None:
+                batch = run_many(args, options, paths, say)
+            else:
+                report = analyze_file(options, say).report
     except DetectorFileError as exc:
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)
         return EXIT_DETECTOR
@@ -166,7 +175,10 @@ def main(argv: list[str] | None = None) -> int:
         # keeps its traceback.
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)
         return EXIT_INPUT
-    print(summary_line(report))
+    if batch is not None:
+        return print_many(batch)
+    files = [p for p in (options.json_path, options.html_path) if p]
+    print(summary_text(report, files, terminal_width() if sys.stdout.isatty() else None))
     return 0
 
 

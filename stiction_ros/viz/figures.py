@@ -2,15 +2,20 @@
 The analyzer's figures: trends, MV-OP and PV-OP maps with the models, the MSE landscape.
 
 Each function saves one PNG and returns its path, so the HTML report can
-embed it and an engineer can open it alone.
+embed it and an engineer can open it alone.  OP and MV are in % of travel;
+PV and SP in "PV units", since no recording states them.
 """
+
+import math
 
 # Figure draws without pyplot and needs no backend: importing this module leaves the
 # caller's matplotlib as it was, and no figure outlives its function.
+from matplotlib import colormaps
 from matplotlib.figure import Figure
 import numpy as np
 
 COLORS = {'kano': 'tab:red', 'choudhury': 'tab:green'}
+PV_UNITS = 'PV units'
 
 
 def _shade_excluded(ax, record):
@@ -33,7 +38,7 @@ def trends_figure(analysis, path, window=None):
     for model, mv_hat in analysis.predictions.items():
         ax.plot(t[keep], mv_hat[keep], color=COLORS[model], lw=1, ls='--',
                 label=f'MV {model}')
-    ax.set_ylabel('%')
+    ax.set_ylabel('OP, MV (%)' if rec.has('mv') else 'OP (%)')
     ax.legend(loc='upper right', fontsize=8, ncol=4)
     _shade_excluded(ax, rec)
     if rows == 2:
@@ -41,6 +46,7 @@ def trends_figure(analysis, path, window=None):
         ax.plot(t[keep], rec.signals['pv'][keep], color='tab:purple', lw=1, label='PV')
         if rec.has('sp'):
             ax.plot(t[keep], rec.signals['sp'][keep], color='tab:orange', lw=1, label='SP')
+        ax.set_ylabel(f'PV, SP ({PV_UNITS})')
         ax.legend(loc='upper right', fontsize=8)
         _shade_excluded(ax, rec)
     axes[-1, 0].set_xlabel('time (s); grey: excluded')
@@ -69,7 +75,7 @@ def maps_figure(analysis, path):
             lo, hi = np.nanmin(op[ok]), np.nanmax(op[ok])
             ax.plot([lo, hi], [lo, hi], ':', color='0.5', lw=0.8, label='ideal valve')
         ax.set_xlabel('OP (%)')
-        ax.set_ylabel(f'{name.upper()}')
+        ax.set_ylabel('MV (%)' if name == 'mv' else f'PV ({PV_UNITS})')
         ax.set_title(f'{name.upper()}-OP map')
         ax.legend(fontsize=8)
     fig.tight_layout()
@@ -77,18 +83,46 @@ def maps_figure(analysis, path):
     return path
 
 
+def landscape_colours(landscape: dict) -> dict:
+    """
+    Return what the landscape's colours show: log10(MSE / MSE_min) and its limits.
+
+    Relative to the minimum, so a fit whose MSE is near 0 is coloured as
+    clearly as a noisy one; cells at the ceiling (not computed further) are
+    flagged ``over``.
+    """
+    mse = np.asarray(landscape['mse'], dtype=float)
+    least = float(np.min(mse))
+    ceiling = landscape.get('ceiling')
+    over = np.zeros(mse.shape, dtype=bool) if ceiling is None else mse >= ceiling * (1 - 1e-9)
+    value = np.log10(mse / least)
+    top = (math.log10(ceiling / least) if over.any()
+           else float(np.max(value)) if value.size else 1.0)
+    return {'value': value, 'over': over, 'mse_min': least, 'vmax': max(top, 1e-3),
+            'ceiling': ceiling}
+
+
 def landscape_figure(landscape, path):
-    """Save the MSE over (S, J) around the optimum, log colour scale, with the 95 % region."""
+    """Save the MSE over (S, J) around the optimum, relative to its minimum; 95 % region."""
     s, j, mse = landscape['S'], landscape['J'], landscape['mse']
-    fig = Figure(figsize=(6, 4.8))
+    c = landscape_colours(landscape)
+    fig = Figure(figsize=(6.4, 5.0))
     ax = fig.subplots()
-    im = ax.pcolormesh(j, s, np.log10(mse), shading='nearest', cmap='viridis')
-    fig.colorbar(im, ax=ax, label='log10 MSE')
+    cmap = colormaps['viridis'].with_extremes(over='0.8')
+    # Above vmax, not inf: an infinite cell counts as missing and would be left blank.
+    shown = np.where(c['over'], c['vmax'] + 1.0, c['value'])
+    im = ax.pcolormesh(j, s, shown, shading='nearest',
+                       cmap=cmap, vmin=0.0, vmax=c['vmax'])
+    fig.colorbar(im, ax=ax, extend='max' if c['over'].any() else 'neither',
+                 label=f'log10(MSE / MSE_min), MSE_min = {c["mse_min"]:.3g} %²')
     ax.contour(j, s, mse, levels=[landscape['bound']], colors='w', linewidths=1)
     ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=12, mew=2)
     ax.set_xlabel('J (%)')
     ax.set_ylabel('S (%)')
-    ax.set_title(f'{landscape["model"]}: MSE landscape (white: 95 % region)')
+    title = f'{landscape["model"]}: MSE around the fit (white: 95 % region)'
+    if c['over'].any():
+        title += f'\ngrey: MSE above {c["ceiling"]:.3g} %², not computed further'
+    ax.set_title(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     return path

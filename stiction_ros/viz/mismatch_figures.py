@@ -29,6 +29,7 @@ def mismatch_figure(report, arrays, path):
     if h['t_start'] is not None:
         ax[0, 0].axvline(h['t_start'], color='k', ls='--', lw=1.0, label='held out from here')
     ax[0, 0].set_title('residual MV - model (regions shaded)', fontsize=9)
+    ax[0, 0].set_ylabel('MV - model (%)')
     ax[0, 0].set_xlabel('time (s)')
     ax[0, 0].legend(fontsize=7)
     rows = a['breakaways']
@@ -62,24 +63,35 @@ def mismatch_figure(report, arrays, path):
         _chain_panel(ax[2, 1], report)
     b = report['baseline']
     names = ', '.join(e['id'] for e in m.get('effects', [])) or m['effect']
-    fig.suptitle(f'{names}: held-out MSE {b["mse_holdout"]:.4g} (plain) -> '
-                 f'{m["mse_holdout"]:.4g}\n{m["explanation"]}', fontsize=9, wrap=True)
+    fig.suptitle(f'{names}: held-out MSE {b["mse_holdout"]:.4g} %² (plain) -> '
+                 f'{m["mse_holdout"]:.4g} %²\n{m["explanation"]}', fontsize=9, wrap=True)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     return path
 
 
 def _candidate_panel(axis, report):
-    m, cands = report['mismatch'], report['candidates']
+    cands = report['candidates']
+    top = max((c for c in cands if c['score'] > 1.0), key=lambda c: c['score'], default=None)
+    if report['mismatch']['effect'] in ('none', 'unexplained'):
+        top = None  # passing, but nothing named: the plain fit left nothing to explain
+    colours = ['tab:green' if c is top else 'tab:orange' if c['score'] > 1.0 else '0.6'
+               for c in cands]
     y = np.arange(len(cands))
-    axis.barh(y, [max(c['score'], 1e-3) for c in cands],
-              color=['tab:green' if c['effect'] == m['effect'] else '0.6' for c in cands])
+    # A log axis shows scores from far below to far above 1; a score of 0 sits at its left.
+    floor = 1e-2
+    axis.barh(y, [max(c['score'], floor) for c in cands], color=colours)
+    for k, c in enumerate(cands):
+        axis.text(max(c['score'], floor), k, f' {c["score"]:.3g}', va='center', fontsize=7)
     axis.axvline(1.0, color='k', ls='--', lw=0.8)
     axis.set_yticks(y, [c['effect'] for c in cands], fontsize=7)
     axis.set_xscale('log')
+    axis.set_xlim(floor, max([10.0] + [c['score'] * 30 for c in cands]))
     axis.invert_yaxis()
-    axis.set_xlabel('LR / bootstrap threshold (> 1 accepts)')
-    axis.set_title('friction candidates', fontsize=9)
+    axis.set_xlabel('score = LR / threshold (dashed: 1; above it a candidate passes)',
+                    fontsize=8)
+    axis.set_title('friction candidates: green named (highest passing score),\n'
+                   'orange passes, not named; grey below its threshold', fontsize=8)
 
 
 def _chain_panel(axis, report):
@@ -94,5 +106,5 @@ def _chain_panel(axis, report):
     axis.set_yticks(y, [k for k, _ in rows], fontsize=7)
     axis.set_xscale('log')
     axis.invert_yaxis()
-    axis.set_xlabel('held-out MSE')
+    axis.set_xlabel('held-out MSE (%²)')
     axis.set_title('best valve of each kind, held-out part', fontsize=9)

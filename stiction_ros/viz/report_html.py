@@ -1,194 +1,217 @@
 """
 A single self-contained HTML page of the analyzer's report, figures embedded.
 
-The page shows the verdict first, then the evidence an engineer would check
-by eye: the fits (MSE of eq. 2.8), each signature against its threshold, the
-figures, and what was excluded from the record and why.
+The page shows the verdict first, with the rule that decides it, then the
+evidence an engineer would check by eye: the fits (MSE of eq. 2.8), the
+oscillation, each signature against its threshold, the figures, and what was
+excluded from the record and why.  Every quantity carries its unit and no
+section is a dump of the JSON report (``--json`` has that).
 """
 
-import base64
-import html
-import json
+from __future__ import annotations
+
 from pathlib import Path
 
-STYLE = """
-body { font-family: sans-serif; max-width: 1100px; margin: 1em auto; color: #222; }
-table { border-collapse: collapse; margin: 0.5em 0 1em; }
-td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; font-size: 14px; }
-th { background: #eee; }
-.yes { color: #b00; font-weight: bold; } .no { color: #070; } .und { color: #a60; }
-.verdict { font-size: 20px; padding: 8px; border: 2px solid #888; display: inline-block; }
-img { max-width: 100%; border: 1px solid #ddd; margin: 4px 0; }
-"""
+from stiction_ros.analysis.detection.detect import THRESHOLD as DETECTOR_THRESHOLD
+from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
+from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
+    span, STYLE, table
+from stiction_ros.viz.report_explain import explain_parts
+
+# What each signature's value is, its unit, and which way its threshold points.
+SIGNATURES = {
+    'horch': ('phase |dphi| of the OP-PV cross-correlation', 'deg', '&ge;'),
+    'he_curve_fit': ('stiction index SI (sine vs triangle fit)', '', '&ge;'),
+    'bicoherence': ('non-linearity index NLI', '', '&gt;'),
+    'ellipse': ('apparent stiction (PV-OP ellipse width)', '% of OP', '&ge;'),
+    'hos_pv_op': ('apparent stiction, if the loop is non-linear', '% of OP', '&ge;'),
+    'yamashita': ('share of samples where OP moved and PV stayed', '', '&gt;'),
+    'slip_events': ('slip events', '', '&ge;'),
+}
+
+CAPTIONS = {
+    'trends': 'Time trends. Top: OP and, where recorded, the measured MV and each '
+              f'model&rsquo;s MV, in % of travel. Bottom: PV and SP in {PV_UNITS} (the '
+              'recording does not state them). '
+              'Grey bands: excluded stretches.',
+    'maps': 'Left: MV against OP (both in %), with each model and the ideal valve (MV = OP). '
+            f'Right: PV ({PV_UNITS}) against OP (%).',
+    'mismatch': '--explain: the residual MV - model (%) over time with the worst stretches '
+                'shaded and the start of the held-out part; the plain model&rsquo;s error '
+                'after each breakaway against rest time, position and time; the MV-OP map '
+                'before and after; and the candidates&rsquo; scores (LR / threshold, see '
+                'the rule above the candidates table) or, without friction, the held-out '
+                f'MSE ({MSE_UNIT}) of each kind of valve.',
+    'signatures': 'One panel per signature: its value against its threshold and its verdict '
+                  f'in the title. PV is in {PV_UNITS}, OP in %.',
+}
+LANDSCAPE = ('MSE of eq. 2.8 around the identified (S, J), both in % (red +). Colour: '
+             'log10(MSE / MSE<sub>min</sub>), so 0 is the best point and 1 is ten times its '
+             'MSE, whatever the size of MSE<sub>min</sub> (given on the colour bar, in '
+             f'{MSE_UNIT}). White line: the 95 % region of (S, J). Grey, if any: MSE above '
+             'the ceiling named in the title (the larger of 10<sup>4</sup> MSE<sub>min'
+             '</sub> and ten times the variance of MV, the MSE of a valve frozen at its mean), '
+             'not computed further.')
 
 
-def _e(x):
-    return html.escape(str(x))
-
-
-def _num(x, digits=4):
-    if x is None:
-        return '-'
-    if isinstance(x, float):
-        return f'{x:.{digits}g}'
-    return _e(x)
-
-
-def _decision(flag):
+def _decision(flag: bool | None) -> str:
     if flag is None:
         return '<span class="und">undetermined</span>'
     return '<span class="yes">stiction</span>' if flag else '<span class="no">no stiction</span>'
 
 
-def _table(header, rows):
-    head = ''.join(f'<th>{_e(h)}</th>' for h in header)
-    body = ''.join('<tr>' + ''.join(f'<td>{c}</td>' for c in row) + '</tr>' for row in rows)
-    return f'<table><tr>{head}</tr>{body}</table>'
-
-
-def _img(path):
-    if not path or not Path(path).exists():
-        return ''
-    data = base64.b64encode(Path(path).read_bytes()).decode('ascii')
-    return f'<p><img alt="{_e(Path(path).name)}" src="data:image/png;base64,{data}"></p>'
-
-
-def _params(values):
-    return _e(', '.join(f'{k} {_num(v)}' for k, v in values.items()))
-
-
-def _chain_parts(report):
-    # The frictionless baseline and the friction chains, and the tests between them.
-    m = report['mismatch']
-    out = []
-    if m.get('effects'):
-        rows = [[_e(e['id']), _num(e.get('size')), _e(e.get('unit', '')),
-                 _num(e.get('uncertainty')), _e(e['sentence'])] for e in m['effects']]
-        out += ['<h3>Effects kept</h3>',
-                _table(['effect', 'size', 'unit', 'standard error', 'what it means'], rows)]
-    chains = [('no friction', report.get('frictionless'))] + [
-        (k, v) for k, v in report.get('chains', {}).items()]
-    rows = [[_e(name), _num(c['S']), _num(c['J']), _num(c['dead_time_s']), _num(c['lag_s']),
-             _num(c['offset']), _num(c['gain']), _e(', '.join(c['stages']) or '-'),
-             _num(c['mse_fit']), _num(c['mse_holdout'])] for name, c in chains if c]
-    if rows:
-        out += ['<h3>The valve through its instruments: best chain of each kind</h3>',
-                _table(['friction', 'S (%)', 'J (%)', 'dead time (s)', 'lag (s)',
-                        'offset (%)', 'gain', 'stages kept', 'MSE fit', 'MSE held-out'], rows)]
-    rows = [[_e(k.replace('_', ' ')), _num(v.get('lr')), _num(v.get('threshold')),
-             _num(v.get('rho'), 3),
-             _num(v.get('heldout_gain'), 3), _num(v.get('heldout_p'), 3),
-             'yes' if v['wins'] else 'no'] for k, v in report.get('friction_tests', {}).items()]
-    if rows:
-        out += ['<p>Friction is present only where a friction chain beats the best chain '
-                'without friction on the fitted part (likelihood ratio on the effective '
-                'sample size) and on the held-out part (paired block bootstrap, p &lt; '
-                '0.01); it is stiction when the final friction model (its effects included) '
-                'needs the slip jump J on the fitted part and beats that chain held out '
-                'too.</p>',
-                _table(['test', 'LR', 'threshold', 'residual lag-1', 'held-out MSE gain',
-                        'held-out p', 'passes'], rows)]
-    return out
-
-
-def _mismatch_parts(report):
-    # The --explain sections: the answer first, then what it rests on.
-    m, b, h = report['mismatch'], report['baseline'], report.get('holdout', {})
-    out = ['<h2>Why the model misses (--explain)</h2>',
-           f'<p class="verdict">{_e(m["effect"])} &mdash; confidence '
-           f'{_num(m["confidence"], 3)}</p>', f'<p>{_e(m["explanation"])}</p>',
-           _table(['model', 'parameters', 'MSE fitted part', 'MSE held-out part'], [
-               [f'{_e(b["model"])} (plain)', f'S {_num(b["S"])}, J {_num(b["J"])}',
-                _num(b['mse_fit']), _num(b['mse_holdout'])],
-               [_e(m['model']['name']), _params(m['model']['params']),
-                _num(m['mse_fit']), _num(m['mse_holdout'])]]),
-           f'<p>Held out: samples from {_e(h.get("first_sample"))} on (t &ge; '
-           f'{_num(h.get("t_start"))} s, {_e(h.get("holdout_samples"))} samples), used for '
-           'nothing but the held-out MSE.</p>']
-    out += _chain_parts(report)
-    rows = [[_e(c['effect']), _params(c['params']),
-             _num(c['S']), _num(c['J']), _num(c['mse_fit']), _num(c['mse_holdout']),
-             _num(c.get('lr')), _num(c.get('threshold')), _num(c['score'], 3)]
-            for c in report.get('candidates', [])]
-    out += ['<h3>Candidates side by side (each nests the plain model)</h3>',
-            _table(['effect', 'parameters', 'S (%)', 'J (%)', 'MSE fit', 'MSE held-out',
-                    'LR', 'threshold', 'score (LR / threshold)'], rows)]
-    if m.get('regions'):
-        rows = [[_num(r['t_start']), _num(r['t_end']), _e(r['regime']),
-                 _num(r['residual_share'], 3)] for r in m['regions']]
-        out += ['<h3>Where the plain model misses most (fitted part)</h3>',
-                _table(['from (s)', 'to (s)', 'dominant regime', 'share of the residual'],
-                       rows)]
-    if m.get('regimes'):
-        rows = [[_e(r['regime']), _num(r['residual_share'], 3), _num(r['sample_share'], 3),
-                 _num(r['lift'], 3)] for r in m['regimes']]
-        out += ['<h3>Residual by regime</h3>',
-                _table(['regime', 'share of the residual', 'share of the samples',
-                        'lift (residual / samples)'], rows)]
-    return out
-
-
-def render(report, figures):
-    """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
+def _verdict(report: dict) -> list:
     st = report.get('stiction', {})
     verdict = ('STICTION DETECTED' if st.get('detected')
                else 'no stiction detected' if st.get('detected') is False else 'cannot tell')
-    if st.get('probability') is not None:
-        strength = (f'probability of stiction {_num(st["probability"], 3)} (calibrated on '
-                    f'simulated loops)')
+    if report.get('fits'):
+        strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
+        how = (f'With the valve position (MV) the fits decide: stiction when the 95 % range '
+               f'of the best model&rsquo;s S starts at or above {num(MIN_S)} % and its MSE is '
+               f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP). The '
+               'score is that reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>).')
+    elif st.get('probability') is not None:
+        strength = (f'probability of stiction {num(st["probability"], 3)} (calibrated on '
+                    'simulated loops)')
+        how = (f'Without MV a detector trained on simulated loops decides: stiction when its '
+               f'calibrated probability is at or above {num(DETECTOR_THRESHOLD)}.')
     else:
-        strength = f'score {_num(st.get("score"), 3)} (0 = none, 1 = certain)'
-    parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>stiction report: '
-             f'{_e(report.get("name") or report["input"].get("path"))}</title>'
-             f'<style>{STYLE}</style></head><body>',
-             f'<h1>Valve stiction report: {_e(report.get("name") or "")}</h1>',
-             f'<p>Input: <code>{_e(report["input"].get("path"))}</code> '
-             f'({_e(report["input"].get("format"))}); {report["samples"]} samples at '
-             f'{_num(report["sample_time"])} s, {report["valid_samples"]} valid; signals: '
-             f'{_e(", ".join(report["signals"]))}; {_e(report.get("loop_type", ""))} loop.</p>',
-             f'<p class="verdict">{verdict} &mdash; {strength}; apparent S '
-             f'{_num(st.get("apparent_S"), 3)} %</p>',
-             f'<p>{_e(st.get("reason", ""))}</p>']
+        strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
+        how = ''
+    size = ('' if st.get('apparent_S') is None
+            else f'; apparent S {num(st["apparent_S"], 3, "%")}')
+    out = [f'<p class="verdict">{verdict} &mdash; {strength}{size}</p>',
+           f'<p>{clean(st.get("reason", ""))}</p>']
+    if how:
+        out.append(rule(how))
     if st.get('size_withheld'):
-        parts.append(f'<p>No size is given: {_e(st["size_withheld"])}</p>')
+        out.append(f'<p>No size is given: {clean(st["size_withheld"])}</p>')
+    vote = st.get('signature_vote')
+    if vote:
+        out.append(f'<p>Beside it, the vote of the signatures (each decided signature counts '
+                   f'1 for stiction, 0 against; stiction at a share of {num(VOTE_THRESHOLD)} '
+                   f'or more): {_decision(vote.get("detected"))}, share '
+                   f'{num(vote.get("score"), 3)}; {clean(vote.get("reason", ""))}.</p>')
+    return out
+
+
+def _fits(report: dict) -> list:
+    rows = [[e(f['model']), num(f['S'], unit='%'), num(f['J'], unit='%'), num(f['mse']),
+             num(f.get('ideal_valve_mse')), e(f['source']), span(f.get('S_interval')),
+             span(f.get('J_interval'))] for f in report['fits']]
+    return ['<h2>Model fits (MSE of eq. 2.8 against the measured MV)</h2>',
+            table(['model', 'S', 'J', f'MSE ({MSE_UNIT})', f'MSE of an ideal valve ({MSE_UNIT})',
+                   'source', 'S 95 % range', 'J 95 % range'], rows)]
+
+
+def _oscillation(osc: dict) -> list:
+    rows = [['oscillating', 'yes' if osc.get('oscillating') else 'no',
+             'a regular cycle in the control error SP - PV']]
+    if osc.get('period_s') is not None:
+        rows.append(['period', num(osc['period_s'], unit='s'),
+                     'from the zero crossings of its autocorrelation'])
+    if osc.get('amplitude') is not None:
+        rows.append(['amplitude', num(osc['amplitude'], unit=PV_UNITS),
+                     'of the fundamental sinusoid of SP - PV'])
+    if osc.get('regularity') is not None:
+        rows.append(['regularity', num(osc['regularity'], 3),
+                     'mean period / (3 x its standard deviation); regular above 1'])
+    if osc.get('n_cycles') is not None:
+        rows.append(['cycles in the record', num(osc['n_cycles'], 3), 'record length / period'])
+    rows.append(['why', clean(osc.get('reason', '')), ''])
+    return ['<h2>Oscillation</h2>', table(['quantity', 'value', 'meaning'], rows)]
+
+
+def _signatures(sigs: dict) -> list:
+    rows = []
+    for name, s in sigs.items():
+        what, unit, op = SIGNATURES.get(name, ('value', '', ''))
+        rule_text = ('-' if s.get('threshold') is None
+                     else f'{op} {num(s["threshold"], unit=unit)}')
+        rows.append([e(name), e(what), num(s.get('value'), unit=unit), rule_text,
+                     _decision(s.get('stiction')), clean(s.get('reason', ''))])
+    return ['<h2>Signatures (OP and PV only)</h2>',
+            rule('A signature says stiction when its value passes its threshold in the '
+                 'direction shown; bicoherence only finds the loop non-linear, which the PV-OP '
+                 'ellipse then sizes (hos_pv_op). Undetermined: the record cannot tell (too '
+                 'short, no oscillation, between the two thresholds of the paper).'),
+            table(['signature', 'measures', 'value', 'stiction when', 'decision', 'why'], rows)]
+
+
+def _hammerstein(ham: dict) -> list:
+    rows = [['S', num(ham.get('S'), unit='%'), span(ham.get('S_interval'))],
+            ['J', num(ham.get('J'), unit='%'), span(ham.get('J_interval'))],
+            ['residual variance / that of a linear valve', num(ham.get('fit_improvement'), 3),
+             'below 1: the sticky valve explains PV better'],
+            ['reliable', 'yes' if ham.get('reliable') else 'no', clean(ham.get('reason', ''))]]
+    lin = ham.get('linear_model') or {}
+    if lin:
+        rows.append(['plant (ARX)', f'{e(lin.get("structure", ""))} na {num(lin.get("na"))}, '
+                     f'nb {num(lin.get("nb"))}',
+                     f'dead time {num(lin.get("delay_s"), unit="s")}, time constant '
+                     f'{num(lin.get("time_constant_s"), unit="s")}, gain '
+                     f'{num(lin.get("gain"), 3, PV_UNITS + " per % of OP")}'
+                     + (', integrating' if lin.get('integrating') else '')])
+    d = ham.get('details') or {}
+    if d.get('likelihood_ratio') is not None:
+        rows.append(['likelihood ratio, sticky vs linear valve',
+                     num(d['likelihood_ratio']),
+                     f'on {num(d.get("effective_samples"), 4)} effective samples'])
+    se = d.get('jackknife_se') or {}
+    if se:
+        rows.append(['jackknife standard error', f'S {num(se.get("S"), 3, "%")}, '
+                     f'J {num(se.get("J"), 3, "%")}', ''])
+    out = ['<h2>Hammerstein quantification (S and J from OP and PV)</h2>',
+           table(['quantity', 'value', 'range or meaning'], rows)]
+    if ham.get('reference'):
+        out.append(f'<p>After {clean(ham["reference"])}.</p>')
+    return out
+
+
+def _figures(figures: list) -> list:
+    out = ['<h2>Figures</h2>']
+    for p in figures:
+        stem = Path(p).stem
+        caption = CAPTIONS.get(stem, LANDSCAPE if stem.startswith('landscape') else '')
+        out.append(figure(p, caption))
+    return out
+
+
+def render(report: dict, figures: list) -> str:
+    """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
+    st = report.get('stiction', {})
+    name = report.get('name') or report['input'].get('path')
+    parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>stiction report: '
+             f'{e(name)}</title><style>{STYLE}</style></head><body>',
+             f'<h1>Valve stiction report: {e(report.get("name") or "")}</h1>',
+             f'<p>Input: <code>{e(report["input"].get("path"))}</code> '
+             f'({e(report["input"].get("format"))}); {num(report["samples"])} samples at '
+             f'{num(report["sample_time"], unit="s")}, {num(report["valid_samples"])} valid; '
+             f'signals: {e(", ".join(report["signals"]))}; '
+             f'{e(report.get("loop_type", ""))} loop. OP and MV are in % of travel; PV and SP '
+             f'in {PV_UNITS}.</p>']
+    parts += _verdict(report)
     if st.get('evidence'):
         parts += ['<h2>Evidence (which test saw what, and when)</h2><ul>',
-                  *[f'<li>{_e(ev)}</li>' for ev in st['evidence']], '</ul>']
+                  *[f'<li>{clean(ev)}</li>' for ev in st['evidence']], '</ul>']
     if report.get('fits'):
-        rows = [[_e(f['model']), _num(f['S']), _num(f['J']), _num(f['mse']), _e(f['source']),
-                 _e(f.get('S_interval', '-')), _e(f.get('J_interval', '-'))]
-                for f in report['fits']]
-        parts += ['<h2>Model fits (MSE of eq. 2.8 against the measured MV)</h2>',
-                  _table(['model', 'S (%)', 'J (%)', 'MSE', 'source', 'S 95 % range',
-                          'J 95 % range'], rows)]
-    osc = st.get('oscillation')
-    if osc:
-        parts.append(f'<h2>Oscillation</h2><p>{_e(json.dumps(osc))}</p>')
-    sigs = st.get('signatures', {})
-    if sigs:
-        rows = [[_e(name), _num(s.get('value')), _num(s.get('threshold')),
-                 _decision(s.get('stiction')), _e(s.get('reason', ''))]
-                for name, s in sigs.items()]
-        parts += ['<h2>Signatures (OP and PV only)</h2>',
-                  _table(['signature', 'value', 'threshold', 'decision', 'why'], rows)]
-    if report.get('mismatch') and 'baseline' not in report:
-        parts += ['<h2>Why the model misses (--explain)</h2>',
-                  f'<p class="verdict">cannot tell</p><p>{_e(report["mismatch"]["explanation"])}'
-                  '</p>']
-    elif report.get('mismatch'):
-        parts += _mismatch_parts(report)
-    ham = st.get('hammerstein')
-    if ham:
-        parts.append(f'<h2>Hammerstein quantification</h2><p>{_e(json.dumps(ham))}</p>')
-    parts.append('<h2>Figures</h2>')
-    parts += [_img(p) for p in figures]
+        parts += _fits(report)
+    if st.get('oscillation'):
+        parts += _oscillation(st['oscillation'])
+    if st.get('signatures'):
+        parts += _signatures(st['signatures'])
+    if report.get('mismatch'):
+        parts += explain_parts(report)
+    if st.get('hammerstein'):
+        parts += _hammerstein(st['hammerstein'])
+    parts += _figures([p for p in figures if p and Path(p).exists()])
     if report.get('excluded'):
-        rows = [[_num(x.get('start_s')), _num(x.get('end_s')), _e(x.get('samples')),
-                 _e(x.get('reason'))] for x in report['excluded']]
+        rows = [[num(x.get('start_s'), unit='s'), num(x.get('end_s'), unit='s'),
+                 num(x.get('samples')), clean(x.get('reason'))] for x in report['excluded']]
         parts += ['<h2>Excluded from the analysis</h2>',
-                  _table(['from (s)', 'to (s)', 'samples', 'reason'], rows)]
+                  table(['from', 'to', 'samples', 'reason'], rows)]
     if report.get('notes'):
-        parts.append('<h2>Notes</h2><ul>' + ''.join(f'<li>{_e(n)}</li>' for n in report['notes'])
-                     + '</ul>')
+        notes = ''.join(f'<li>{clean(n)}</li>' for n in report['notes'])
+        parts.append(f'<h2>Notes</h2><ul>{notes}</ul>')
     parts.append('</body></html>')
     return '\n'.join(parts)

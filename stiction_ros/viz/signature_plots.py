@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 import numpy as np
 
 VERDICT = {True: 'stiction', False: 'no stiction', None: 'undetermined'}
+PV_UNITS = 'PV units'
 COLOUR = {True: 'tab:red', False: 'tab:green', None: 'tab:gray'}
 
 
@@ -62,6 +63,8 @@ def _he(ax, sig):
             label='triangle fit')
     ax.legend(fontsize=7, loc='upper right')
     ax.set_xlabel('time (s)')
+    ax.set_ylabel(f'{c["signal"].upper()} less its trend '
+                  f'({"%" if c["signal"] == "op" else PV_UNITS})')
 
 
 def _bicoherence(ax, sig):
@@ -90,14 +93,15 @@ def _ellipse(ax, sig, op, pv):
         ax.plot([x0 - w / 2, x0 + w / 2], [y0, y0], color='k', lw=2.0, label='apparent stiction')
     ax.legend(fontsize=7, loc='best')
     ax.set_xlabel('OP (%)')
-    ax.set_ylabel(sig.details.get('pv_signal', 'PV'))
+    ax.set_ylabel('dPV/dt (PV units/s)' if sig.details.get('pv_signal') == 'dPV/dt'
+                  else f'PV ({PV_UNITS})')
 
 
 def _slips(ax, sig, op, pv, sample_time):
     t = np.arange(len(pv)) * sample_time
     ax.plot(t, pv, color='tab:red', lw=0.6, label='PV')
     ax.set_xlabel('time (s)')
-    ax.set_ylabel('PV')
+    ax.set_ylabel(f'PV ({PV_UNITS})')
     right = ax.twinx()
     right.plot(t, op, color='tab:blue', lw=0.8, label='OP')
     right.set_ylabel('OP (%)')
@@ -110,8 +114,10 @@ def _slips(ax, sig, op, pv, sample_time):
 
 def _text(ax, sig):
     ax.axis('off')
-    lines = [sig.reason] + [f'{k}: {_fmt(v) if isinstance(v, float) else v}'
-                            for k, v in sig.details.items()]
+    # Scalars only: a list of events or a nested dict would print as raw Python.
+    lines = [sig.reason] + [f'{k}: {_fmt(v) if isinstance(v, float) or v is None else v}'
+                            for k, v in sig.details.items()
+                            if v is None or isinstance(v, (bool, int, float, str))]
     ax.text(0.02, 0.95, '\n'.join(lines), transform=ax.transAxes, va='top', fontsize=8,
             wrap=True)
 

@@ -13,7 +13,9 @@ effect-free replicates (and the chi-square 99.9 % point).  Held-out samples
 
 When no candidate passes, the residual is called structured (``unexplained``)
 when its lag-1 autocorrelation exceeds every bootstrap replicate's by more
-than ``ACF_MARGIN``; otherwise the answer is ``none``.
+than ``ACF_MARGIN``; otherwise the answer is ``none``.  A plain fit whose RMS
+residual is at most ``NEGLIGIBLE_RMS`` leaves nothing to explain (``none``),
+whatever the residual's structure.
 """
 
 from concurrent.futures import ThreadPoolExecutor
@@ -34,6 +36,12 @@ BOOTSTRAP = 3
 MARGIN = 2.0
 ACF_MARGIN = 0.1
 CHI2_999 = {1: 10.83, 2: 13.82}
+# A plain fit this close (RMS residual, % of span) leaves nothing to explain: it is the
+# fits' own grid step in S and J, what moving a breakaway by one step costs, and below
+# what a position transmitter resolves (16 bits: 0.0015 %).  The residual of such a fit
+# (rounding, Choudhury's model read through Kano's) is structured, and white bootstrap
+# noise of its size is not, so the autocorrelation test alone called it unexplained.
+NEGLIGIBLE_RMS = RESOLUTION
 
 
 def split_segments(segments, n_fit):
@@ -206,7 +214,8 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
             'mse_holdout': masked_mse(out, mv, hold_mask),
             'score': round(stats[f.effect] / thresholds[f.effect], 4),
             'lr': round(stats[f.effect], 3), 'threshold': round(thresholds[f.effect], 3)})
-    passing = [c for c in candidates if c['score'] > 1.0]
+    negligible = math.sqrt(plain_sse / n_used) <= NEGLIGIBLE_RMS
+    passing = [] if negligible else [c for c in candidates if c['score'] > 1.0]
 
     def residual_of(f):
         return (outputs[f.effect] - mv)[fit_mask]
@@ -226,14 +235,22 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         params = {'S': chosen['S'], 'J': chosen['J'], **chosen['params']}
         model = {'name': f'kano+{effect}', 'params': params}
     else:
-        structured = bool(acfs) and acf > max(acfs) + ACF_MARGIN
+        structured = not negligible and bool(acfs) and acf > max(acfs) + ACF_MARGIN
         effect = 'unexplained' if structured else 'none'
-        explanation = (
-            f'The residual of the plain model is structured (lag-1 autocorrelation {acf:.2f} '
-            f'against at most {max(acfs):.2f} on effect-free replicates) but no candidate '
-            'explains it; see the regions.' if structured else
-            'Nothing is missing: the plain model explains the valve up to noise, and no '
-            'candidate improves the fit beyond what noise alone produces.')
+        if structured:
+            explanation = (
+                f'The residual of the plain model is structured (lag-1 autocorrelation '
+                f'{acf:.2f} against at most {max(acfs):.2f} on effect-free replicates) but '
+                'no candidate explains it; see the regions.')
+        elif negligible:
+            explanation = (
+                f'Nothing is left to explain: the plain model fits the valve to an RMS error '
+                f"of {math.sqrt(plain_sse / n_used):.2g} % of span, no more than the fit's own "
+                f'{RESOLUTION:g} % step in S and J.')
+        else:
+            explanation = (
+                'Nothing is missing: the plain model explains the valve up to noise, and no '
+                'candidate improves the fit beyond what noise alone produces.')
         best = max(candidates, key=lambda c: c['score'])
         confidence = max(0.0, 1.0 - best['score'])
         mv_explained = mv_base

@@ -98,9 +98,13 @@ def breakaways(t, op, mv, mv_model, resting, sample_time, after=5):
     for k in range(1, len(resting)):
         if resting[k] > 0.5 and resting[k - 1] <= 0.5:
             rest_since = k
-        if resting[k - 1] > 0.5 and resting[k] <= 0.5:
+        # Outside the valid segments the model is NaN and its resting flag 0: the end of
+        # a segment that stopped at rest is no breakaway.
+        if resting[k - 1] > 0.5 and resting[k] <= 0.5 and np.isfinite(mv_model[k]):
             seg = slice(k, min(len(mv), k + after))
-            err = float(np.nanmean(mv[seg] - mv_model[seg]))
+            diff = mv[seg] - mv_model[seg]
+            diff = diff[np.isfinite(diff)]
+            err = float(np.mean(diff)) if len(diff) else float('nan')
             rows.append({'t': float(t[k]), 'direction': 'opening' if op[k] > op[k - 1]
                          else 'closing', 'rest_s': float((k - rest_since) * sample_time),
                          'position': float(mv_model[k - 1]), 'residual': err})
