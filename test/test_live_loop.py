@@ -29,7 +29,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 RTF = 100.0
 
 
-@pytest.mark.parametrize('case', ['deadband', 'undershoot', 'no_offset', 'overshoot'])
+# The three oscillating cases run at once, each equal to its offline twin to the bit, in
+# test_many_loops.py; here the deadband case, which must not oscillate, runs alone.
+@pytest.mark.parametrize('case', ['deadband'])
 def test_table_2_1_live_loop_matches_the_offline_simulator(case, tmp_path):
     cfg = load_loop(config_file('concentration_loop.yaml'), case)
     duration = 1000.0

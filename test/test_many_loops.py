@@ -118,4 +118,4 @@ def test_two_loops_at_once_each_equal_their_offline_twin(probe, tmp_path):
 
 
 def test_three_loops_at_once_each_equal_their_offline_twin(probe, tmp_path):
-    check_loops('three', ['undershoot', 'overshoot', 'no_offset'], 200.0, tmp_path, probe)
+    check_loops('three', ['undershoot', 'overshoot', 'no_offset'], 400.0, tmp_path, probe)
