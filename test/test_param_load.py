@@ -25,7 +25,7 @@ from stiction_ros.resources import config_dir, config_file
 from stiction_ros.sim.loop_config import load_loop
 from stiction_ros.sim.profile_params import key_defaults, KEYS, pairs, profile_parameters
 from stiction_ros.sim.profile_params import profile_spec, PROFILE_TYPES
-from stiction_ros.sim.ros_params import node_params_file, shipped_node_params
+from stiction_ros.sim.ros_params import nest, node_params_file, shipped_node_params
 from stiction_ros.sim.sources import make_source
 import yaml
 
@@ -66,14 +66,8 @@ def dump(probe, client, node, path):
     res = probe.call(lambda: client.get_parameters(names))
     flat = {n: plain(Parameter.from_parameter_msg(ParamMsg(name=n, value=v)).value)
             for n, v in zip(names, res.values) if n not in ROS_READ_ONLY}
-    nested = {}
-    for name, value in flat.items():
-        *parents, leaf = name.split('.')
-        level = nested
-        for part in parents:
-            level = level.setdefault(part, {})
-        level[leaf] = value
-    path.write_text(yaml.dump({node: {'ros__parameters': nested}}, default_flow_style=False))
+    path.write_text(yaml.dump({node: {'ros__parameters': nest(flat)}},
+                              default_flow_style=False))
     return flat
 
 
