@@ -18,6 +18,7 @@ DEMO_CASE ?= undershoot
 
 venv:
 	@bash tools/bootstrap.sh
+	@$(PY) -m stiction_ros.cli.precompile --if-stale
 
 # Regenerate config/params/<loop>_<case>/<node>.params.yaml from the loop files in config/
 # (test_param_load fails when they are stale).

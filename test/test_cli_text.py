@@ -35,3 +35,19 @@ def test_a_reader_that_stops_early_ends_the_command_quietly():
     assert run.stdout.startswith('t,'), run.stdout
     assert 'Traceback' not in run.stderr and 'BrokenPipe' not in run.stderr, run.stderr
     assert run.returncode == 0, run.stderr
+
+
+def test_analyzer_help_loads_nothing_of_the_analysis():
+    # The help must answer in Python's own start-up time: no numpy, scipy or numba.
+    code = ('import sys\n'
+            'from stiction_ros.cli.analyze import main\n'
+            'try:\n'
+            '    main(["--help"])\n'
+            'except SystemExit:\n'
+            '    pass\n'
+            'heavy = ("numpy", "scipy", "numba", "matplotlib", "rclpy")\n'
+            'print(sorted(m for m in sys.modules if m.split(".")[0] in heavy)[:5])\n')
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip().splitlines()[-1] == '[]', run.stdout[-300:]

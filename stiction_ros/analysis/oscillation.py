@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
-from scipy import signal
+
+from stiction_ros.analysis.dsp import detrend_linear
 
 MAX_CROSSINGS = 11
 MIN_CROSSINGS = 5
@@ -69,7 +70,7 @@ def as_signal(x):
 def detrend(x):
     """Return ``x`` with its mean and linear trend removed."""
     x = as_signal(x)
-    return signal.detrend(x, type='linear') if len(x) > 1 else x - x.mean()
+    return detrend_linear(x) if len(x) > 1 else x - x.mean()
 
 
 def bandpass(x, sample_time, low_hz=None, high_hz=None):

@@ -23,18 +23,16 @@ import re
 import time
 from typing import Callable, TYPE_CHECKING
 
+from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.app.progress import print_nothing, Step
-from stiction_ros.app.report_files import write_html, write_json
 from stiction_ros.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
     from stiction_ros.analysis.pipeline import Analysis, Options
     from stiction_ros.analysis.record import Record
 
-# The same choices as stiction_ros.analysis.pipeline.Options; repeated here so that
-# making and checking options does not load the analysis (about a second).
-MODEL_CHOICES = ('kano', 'choudhury', 'both')
-LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
+# LOOP_TYPES and MODEL_CHOICES are the choices of stiction_ros.analysis.pipeline.Options,
+# repeated so that making and checking options does not load the analysis (a second).
 # explain_record's limit: at least a tenth of the record must stay for the fits.
 HOLDOUT_MAX = 0.9
 # What --columns may name: the time and the readers' signals (stiction_ros.analysis.record).
@@ -291,6 +289,7 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     if options.explain:
         run_explain(analysis, options, say)
     report['elapsed_s'] = round(time.perf_counter() - t0, 3)
+    from stiction_ros.app.report_files import write_html, write_json
     if options.json_path:
         write_json(options.json_path, report)
         say(f'wrote {options.json_path}')

@@ -22,14 +22,17 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from typing import TYPE_CHECKING
 
-from stiction_ros.app.analyze import (
-    analyze_file, AnalyzeOptions, LOOP_TYPES, MODEL_CHOICES, Say)
-from stiction_ros.app.batch import analyze_many, Batch, expand
-from stiction_ros.app.report_files import write_json
-from stiction_ros.app.report_text import batch_row_text
+# Only what --help needs is imported here: the analysis (numpy, scipy, numba)
+# loads in main(), so that the help answers in the time Python starts.
+from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import DetectorFileError, StictionError
+
+if TYPE_CHECKING:
+    from stiction_ros.app.analyze import AnalyzeOptions, Say
+    from stiction_ros.app.batch import Batch
 
 EXIT_INPUT = 2
 # The learned detector's model file is missing or damaged: the install, not the input.
@@ -119,6 +122,7 @@ def options_from_args(args: argparse.Namespace) -> AnalyzeOptions:
     Attributes the namespace lacks take the defaults of ``stiction-analyze``,
     so a namespace made by hand with only some of them still works.
     """
+    from stiction_ros.app.analyze import AnalyzeOptions
     given = vars(args)
     names = {f.name for f in dataclasses.fields(AnalyzeOptions)}
     kwargs = {k: v for k, v in given.items() if k in names}
@@ -130,6 +134,8 @@ def options_from_args(args: argparse.Namespace) -> AnalyzeOptions:
 def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str],
              say: Say) -> Batch:
     """Analyse every recording in ``paths``; write the ``--json`` summary; return the batch."""
+    from stiction_ros.app.batch import analyze_many
+    from stiction_ros.app.report_files import write_json
     batch = analyze_many(options, paths, args.scheduler, args.out_dir, say)
     if options.json_path:
         write_json(options.json_path, batch.summary())
@@ -139,6 +145,7 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
 
 def print_many(batch: Batch) -> int:
     """Print a line per recording and the tally; return the exit status."""
+    from stiction_ros.app.report_text import batch_row_text
     for row in batch.rows:
         print(batch_row_text(row))
     failed, where = batch.failed, batch.workers
@@ -153,7 +160,8 @@ def print_many(batch: Batch) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``stiction-analyze``."""
     args = parser().parse_args(argv)
-    # Imported here: --help needs neither.
+    from stiction_ros.app.analyze import analyze_file
+    from stiction_ros.app.batch import expand
     from stiction_ros.app.progress import terminal_progress, terminal_width
     from stiction_ros.app.report_text import summary_text
     batch = None

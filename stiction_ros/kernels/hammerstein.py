@@ -42,7 +42,7 @@ def _reduction(h: Floats, g: Floats) -> float:
     return np.sum(z * z)
 
 
-@njit(cache=True)
+@njit(cache=True, aot='f8[:](f8[::1], f8, f8, i8, f8)')
 def segment_path(u: Floats, S: float, J: float, direction: int, fraction: float) -> Floats:
     """
     Return Kano's output for ``u`` from the start state (``direction``, ``fraction``).
@@ -122,7 +122,9 @@ def _best_delay(v: Floats, rows: Ints, row_seg: Ints, seg_rows: Floats, qy: Floa
     return max(best, 0.0), best_d
 
 
-@njit(cache=True)
+@njit(cache=True, aot='Tuple((f8[:, ::1], i8[:, ::1]))(f8[::1], f8, b1, i8[::1], f8[::1], '
+                      'i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1], f8[::1], f8, '
+                      'f8[::1], f8[::1], i8, i8, i8)')
 def _grid_sse(u: Floats, ubar: float, integrate: bool, start_dir: Ints, start_frac: Floats,
               starts: Ints, stops: Ints, rows: Ints, row_seg: Ints, seg_rows: Floats,
               qy: Floats, tres: Floats, tt: float, s_values: Floats, j_values: Floats, dlo: int,

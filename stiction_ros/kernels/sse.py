@@ -6,9 +6,13 @@ these kernels fuse the model and the error sum (no output array), and stop as
 soon as the sum passes ``limit``: a candidate already worse than the ones kept
 needs no exact score.  The friction logic is the one of
 ``stiction_ros.models.kano`` and ``stiction_ros.models.choudhury`` (percent
-input, linear characteristic), started at rest at the first measured position
-of every valid segment; ``test_identify.py`` checks that both give the same
-numbers.  Without numba the same functions run as plain Python, slowly.
+input, linear characteristic); ``test_identify.py`` checks that both give the
+same numbers.  Without numba the same functions run as plain Python, slowly.
+
+Only the samples of the valid segments are scored, but the valve runs on
+between them wherever its input is known (:func:`input_known`): a gap in MV
+alone costs its own samples and nothing else.  Where OP is unknown, the next
+segment restarts at its first measured position (``fit_core`` says why).
 """
 
 import numpy as np
@@ -57,18 +61,190 @@ def _kano_step(uraw: float, a: float, S: float, J: float, fd: float, uf: float, 
     return uf, uk, u1, us, resting, d, yk
 
 
+@njit(cache=True, inline='always')
+def input_known(u: Floats, a: int, b: int) -> bool:
+    """Return whether the input is finite on ``[a, b)``: a valve ran on through that gap."""
+    for k in range(a, b):
+        if not np.isfinite(u[k]):
+            return False
+    return True
+
+
+@njit(cache=True, inline='always')
+def _choudhury_step(uk: float, lam: float, S: float, J: float, fd: float, x: float,
+                    xprev: float, sprev: float, xss: float, stuck: bool, d: float,
+                    pos: float) -> tuple[float, float, float, float, bool, float, float]:
+    # One sample of Choudhury's model; returns the new (x, xprev, sprev, xss, stuck, d, pos).
+    x = lam * uk + (1.0 - lam) * x
+    dx = x - xprev
+    sl = 0.0 if dx == 0.0 else (1.0 if dx > 0.0 else -1.0)
+    if x <= 0.0 or x >= 100.0:
+        d = -1.0 if x <= 0.0 else 1.0
+        pos = 0.0 if x <= 0.0 else 100.0
+        stuck = True
+        xss = pos + d * fd
+    else:
+        if not stuck and sl != sprev:
+            stuck = True
+            xss = xprev
+        if stuck:
+            nd = _breakaway(d, x - xss, S, J)
+            if nd != 0.0:
+                d = nd
+                stuck = False
+        if not stuck:
+            pos = _clip(x - d * fd)
+    return x, x, sl, xss, stuck, d, pos
+
+
+# A restart after a gap in OP tries four states (fit_core says why): stuck at the
+# measured position, or moving up or down through it.  A state is 7 floats: Kano's
+# (uf, u1, u2, us, resting, d, yk) or Choudhury's (x, xprev, sprev, xss, stuck, d, pos);
+# entry 3, the stick point, matters only while entry 4 says stuck.
+RESTARTS = 4
+STATE = 7
+# Samples whose median is a stuck valve's position (as mismatch.fit.start_positions): it
+# holds still, and one sample's noise would move its band with it.  The first sample
+# alone is the other estimate: the median misplaces a valve that slips within them.
+RESTART_SAMPLES = 10
+
+
+@njit(cache=True, inline='always')
+def restart_position(y: Floats, i0: int, i1: int, c: int) -> float:
+    """Return the position of restart ``c`` on ``[i0, i1)``: 0, a median, else ``y[i0]``."""
+    if c == 0:
+        return float(np.median(y[i0:min(i1, i0 + RESTART_SAMPLES)]))
+    return y[i0]
+
+
+@njit(cache=True)
+def first_state(kernel_id: int, u0: float, y0: float, st: Floats) -> None:
+    """Fill ``st``: the record's first segment, at rest at ``y0`` under its first input ``u0``."""
+    if kernel_id == 0:
+        st[0], st[1], st[2], st[3], st[4], st[5], st[6] = (u0, _clip(u0), _clip(u0), _clip(u0),
+                                                           1.0, 0.0, y0)
+    else:
+        st[0], st[1], st[2], st[3], st[4], st[5], st[6] = u0, u0, 0.0, u0, 1.0, 0.0, y0
+
+
+@njit(cache=True)
+def restart_state(kernel_id: int, c: int, u0: float, y0: float, st: Floats) -> None:
+    """
+    Fill ``st`` with restart ``c`` before a first input ``u0`` and measured position ``y0``.
+
+    0, 1: stuck at ``y0`` with no friction force stored (the stick point at
+    ``y0``, so breakaway at OP = y0 +- (S + J) / 2); 2, 3: moving up or down
+    (the last input a step behind ``u0``).  The input filter has settled at
+    ``u0`` in all of them, so that they can merge.
+    """
+    if c < 2:
+        if kernel_id == 0:
+            st[0], st[1], st[2], st[3], st[4], st[5], st[6] = (u0, _clip(u0), _clip(u0),
+                                                               _clip(y0), 1.0, 0.0, y0)
+        else:
+            st[0], st[1], st[2], st[3], st[4], st[5], st[6] = u0, u0, 0.0, y0, 1.0, 0.0, y0
+        return
+    d = 1.0 if c == 2 else -1.0
+    if kernel_id == 0:
+        u1 = _clip(u0) - d
+        st[0], st[1], st[2], st[3], st[4], st[5], st[6] = u0, u1, u1 - d, u1, 0.0, d, y0
+    else:
+        st[0], st[1], st[2], st[3], st[4], st[5], st[6] = u0, u0 - d, d, u0, 0.0, d, y0
+
+
+@njit(cache=True)
+def advance(kernel_id: int, st: Floats, uk: float, S: float, J: float, f: float,
+            fd: float) -> float:
+    """Advance the state ``st`` by one input ``uk`` (in place); return the position."""
+    if kernel_id == 0:
+        uf, u1, u2, us, resting, d, yk = _kano_step(uk, f, S, J, fd, st[0], st[1], st[2], st[3],
+                                                    st[4] > 0.5, st[5], st[6])
+        st[0], st[1], st[2], st[3], st[4], st[5], st[6] = (uf, u1, u2, us,
+                                                           1.0 if resting else 0.0, d, yk)
+        return yk
+    x, xprev, sprev, xss, stuck, d, pos = _choudhury_step(uk, f, S, J, fd, st[0], st[1], st[2],
+                                                          st[3], st[4] > 0.5, st[5], st[6])
+    st[0], st[1], st[2], st[3], st[4], st[5], st[6] = (x, xprev, sprev, xss,
+                                                       1.0 if stuck else 0.0, d, pos)
+    return pos
+
+
+@njit(cache=True, inline='always')
+def _merged(a: Floats, b: Floats) -> bool:
+    # Two states that will never differ again (a stick point counts only while stuck).
+    for i in range(STATE):
+        if a[i] != b[i] and not (i == 3 and a[4] < 0.5 and b[4] < 0.5):
+            return False
+    return True
+
+
+@njit(cache=True)
+def restart(kernel_id: int, u: Floats, y: Floats, i0: int, i1: int, S: float, J: float,
+            f: float, bound: float, st: Floats) -> tuple[float, int, int]:
+    """
+    Score the restarts on ``[i0, i1)`` side by side until they merge into one.
+
+    Return (SSE of the best so far, first sample not yet scored, its number);
+    ``st`` receives its state there.  Of two merged restarts the one with the
+    larger SSE can never win and is dropped; scoring stops once the best
+    passes ``bound``.
+    """
+    fd = 0.5 * (S - J)
+    cand = np.empty((RESTARTS, STATE))
+    sse = np.zeros(RESTARTS)
+    alive = np.ones(RESTARTS, dtype=np.bool_)
+    for c in range(RESTARTS):
+        restart_state(kernel_id, c, u[i0], restart_position(y, i0, i1, c), cand[c])
+    left, best, k = RESTARTS, 0, i0
+    while k < i1 and left > 1:
+        for c in range(RESTARTS):
+            if alive[c]:
+                e = advance(kernel_id, cand[c], u[k], S, J, f, fd) - y[k]
+                sse[c] += e * e
+        for c in range(RESTARTS):
+            for c2 in range(c + 1, RESTARTS):
+                if alive[c] and alive[c2] and _merged(cand[c], cand[c2]):
+                    alive[c2 if sse[c] <= sse[c2] else c] = False
+                    left -= 1
+        k += 1
+        best = -1
+        for c in range(RESTARTS):
+            if alive[c] and (best < 0 or sse[c] < sse[best]):
+                best = c
+        if sse[best] > bound:
+            break
+    st[:] = cand[best]
+    return sse[best], k, best
+
+
 @njit(cache=True, nogil=True)
 def kano_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: float, a: float,
              limit: float) -> float:
     """Return the SSE of Kano's model (air-chamber pole ``a``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
     sse = 0.0
+    uf, u1, u2, us, resting, d, yk = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
+    st = np.empty(STATE)
     for s in range(starts.shape[0]):
         i0 = starts[s]
-        uf = u[i0]
-        u1 = _clip(uf)
-        u2, us, resting, d, yk = u1, u1, True, 0.0, y[i0]
-        for k in range(i0, stops[s]):
+        k0 = i0
+        if s == 0:
+            uf = u[i0]
+            u1 = _clip(uf)
+            u2, us, resting, d, yk = u1, u1, True, 0.0, y[i0]
+        elif input_known(u, stops[s - 1], i0):
+            # OP known through the gap: the valve ran on; its samples are not scored.
+            for k in range(stops[s - 1], i0):
+                uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2,
+                                                            us, resting, d, yk)
+        else:
+            e, k0, _ = restart(0, u, y, i0, stops[s], S, J, a, limit - sse, st)
+            sse += e
+            if sse > limit:
+                return sse
+            uf, u1, u2, us, resting, d, yk = (st[0], st[1], st[2], st[3], st[4] > 0.5, st[5],
+                                              st[6])
+        for k in range(k0, stops[s]):
             uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2, us,
                                                         resting, d, yk)
             e = yk - y[k]
@@ -84,37 +260,29 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
     """Return the SSE of Choudhury's model (EWMA weight ``lam``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
     sse = 0.0
+    x, xprev, sprev, xss, stuck, d, pos = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
+    st = np.empty(STATE)
     for s in range(starts.shape[0]):
         i0 = starts[s]
-        pos = y[i0]
-        x = u[i0]
-        xprev = x
-        sprev = 0.0
-        xss = x
-        stuck = True
-        d = 0.0
-        for k in range(i0, stops[s]):
-            x = lam * u[k] + (1.0 - lam) * x
-            dx = x - xprev
-            sl = 0.0 if dx == 0.0 else (1.0 if dx > 0.0 else -1.0)
-            if x <= 0.0 or x >= 100.0:
-                d = -1.0 if x <= 0.0 else 1.0
-                pos = 0.0 if x <= 0.0 else 100.0
-                stuck = True
-                xss = pos + d * fd
-            else:
-                if not stuck and sl != sprev:
-                    stuck = True
-                    xss = xprev
-                if stuck:
-                    nd = _breakaway(d, x - xss, S, J)
-                    if nd != 0.0:
-                        d = nd
-                        stuck = False
-                if not stuck:
-                    pos = _clip(x - d * fd)
-            sprev = sl
-            xprev = x
+        k0 = i0
+        if s == 0:
+            x = u[i0]
+            xprev, sprev, xss, stuck, d, pos = x, 0.0, x, True, 0.0, y[i0]
+        elif input_known(u, stops[s - 1], i0):
+            # OP known through the gap: the valve ran on; its samples are not scored.
+            for k in range(stops[s - 1], i0):
+                x, xprev, sprev, xss, stuck, d, pos = _choudhury_step(
+                    u[k], lam, S, J, fd, x, xprev, sprev, xss, stuck, d, pos)
+        else:
+            e, k0, _ = restart(1, u, y, i0, stops[s], S, J, lam, limit - sse, st)
+            sse += e
+            if sse > limit:
+                return sse
+            x, xprev, sprev, xss, stuck, d, pos = (st[0], st[1], st[2], st[3], st[4] > 0.5,
+                                                   st[5], st[6])
+        for k in range(k0, stops[s]):
+            x, xprev, sprev, xss, stuck, d, pos = _choudhury_step(
+                u[k], lam, S, J, fd, x, xprev, sprev, xss, stuck, d, pos)
             e = pos - y[k]
             sse += e * e
             if sse > limit:
@@ -122,7 +290,8 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
     return sse
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True,
+      aot='f8[:, ::1](i8, f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8, f8)')
 def grid_sse(kernel_id: int, u: Floats, y: Floats, starts: Ints, stops: Ints, s_values: Floats,
              j_values: Floats, f: float, limit: float) -> Floats:
     """Return the SSE of every (S, J) pair on a grid, each abandoned past ``limit``."""
@@ -153,7 +322,8 @@ def spread_order(n: int) -> Ints:
     return (np.arange(n, dtype=np.int64) * stride) % n
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True,
+      aot='f8[::1](i8, f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8, f8[::1])')
 def points_sse_best(kernel_id: int, u: Floats, y: Floats, starts: Ints, stops: Ints,
                     s_pts: Floats, j_pts: Floats, f: float, best: Floats) -> Floats:
     """
@@ -202,3 +372,28 @@ def kano_output(u: Floats, y0: float, S: float, J: float, a: float) -> Floats:
                                                     resting, d, yk)
         y[k] = yk
     return y
+
+
+@njit(cache=True)
+def valve_output(kernel_id: int, u: Floats, y: Floats, starts: Ints, stops: Ints, S: float,
+                 J: float, f: float, out: Floats) -> None:
+    """
+    Write into ``out`` the position that :func:`grid_sse` scores, sample for sample.
+
+    Over the segments and the gaps the valve runs on through; after a gap in
+    OP from the restart that scores best on its segment.
+    """
+    fd = 0.5 * (S - J)
+    st = np.empty(STATE)
+    for s in range(starts.shape[0]):
+        i0 = starts[s]
+        k0 = i0
+        if s == 0:
+            first_state(kernel_id, u[i0], y[i0], st)
+        elif input_known(u, stops[s - 1], i0):
+            k0 = stops[s - 1]
+        else:
+            c = restart(kernel_id, u, y, i0, stops[s], S, J, f, np.inf, st)[2]
+            restart_state(kernel_id, c, u[i0], restart_position(y, i0, stops[s], c), st)
+        for k in range(k0, stops[s]):
+            out[k] = advance(kernel_id, st, u[k], S, J, f, fd)

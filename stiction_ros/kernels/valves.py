@@ -24,7 +24,7 @@ from stiction_ros.kernels.sse import _breakaway, _clip, _kano_step
 _characteristic = njit(cache=True)(apply_characteristic)
 
 
-@njit(cache=True)
+@njit(cache=True, aot='void(f8[::1], f8[::1], f8[::1], f8, f8, f8)')
 def kano_run(u: Floats, y: Floats, st: Floats, S: float, J: float, a: float) -> None:
     """Kano's model (``stiction_ros.models.kano`` state layout)."""
     fd = 0.5 * (S - J)
@@ -62,7 +62,7 @@ def _choudhury_step(x: float, xprev: float, sprev: float, pos: float, xss: float
     return pos, xss, stuck, direction, s
 
 
-@njit(cache=True)
+@njit(cache=True, aot='void(f8[::1], f8[::1], f8[::1], f8, f8, f8, b1, i8, f8, b1)')
 def choudhury_run(u: Floats, y: Floats, st: Floats, S: float, J: float, lam: float, ma_in: bool,
                   char: int, rangeability: float, ma_out: bool) -> None:
     """Choudhury's model (``stiction_ros.models.choudhury`` state layout)."""

@@ -52,7 +52,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm
 
 from stiction_ros.kernels.arrays import Floats
 from stiction_ros.kernels.loop_kinds import loop_args, LoopArgs, PHYSICAL_EXACT, PHYSICAL_SUBSTEP
@@ -353,6 +352,8 @@ class Physical(ValveModel):
 
     def _build_propagators(self) -> None:
         """Tabulate ``expm(F*Ts/2**j)`` for the sub-grid level and every bisection level."""
+        # Imported here: scipy.linalg costs the analyzer's start-up 0.1 s it never needs.
+        from scipy.linalg import expm
         pr = self._params
         ts = pr['sample_time']
         scale = _mech_time_scale(pr['M'], pr['k'], pr['Fv'])

@@ -30,9 +30,9 @@ well (the book's total nonlinearity index).
 Segment length and band: the paper uses M = 128 (4096 samples, K = 63);
 without a known period M = 128 is kept when that gives at least 20
 segments, else M = 64 (at least 8 segments are required).  When the
-oscillation period is known the error is first decimated (FIR
-anti-aliasing, ``scipy.signal.resample_poly``) to about 16 to 32 samples per
-period and M = 64, so each segment holds 2 to 4 cycles and the fundamental
+oscillation period is known the error is first decimated (the FIR
+anti-aliasing of ``scipy.signal.resample_poly``, see :mod:`dsp`) to about
+16 to 32 samples per period and M = 64, so each segment holds 2 to 4 cycles and the fundamental
 and its harmonics up to the new Nyquist frequency stay in the band while
 the noise-only high frequencies, which would dilute the mean of bic2, are
 cut.  This band-limiting replaces the book's Wiener filter.
@@ -54,8 +54,8 @@ PV-OP map (see :mod:`ellipse`); :func:`hos_with_pv_op` combines the two.
 import math
 
 import numpy as np
-from scipy import signal, stats
 
+from stiction_ros.analysis.dsp import chi2_ppf, decimate, detrend_linear
 from stiction_ros.analysis.oscillation import as_signal
 from stiction_ros.analysis.signatures.result import Signature
 
@@ -81,7 +81,7 @@ def squared_bicoherence(x, nfft):
     if k < 1:
         return np.full((step, step), np.nan), 0
     idx = np.arange(nfft)[None, :] + step * np.arange(k)[:, None]
-    seg = signal.detrend(x[idx], axis=1) * np.hanning(nfft)[None, :]
+    seg = detrend_linear(x[idx], axis=1) * np.hanning(nfft)[None, :]
     spec = np.fft.fft(seg, axis=1)
     b = np.arange(1, step + 1)
     f1, f2 = np.meshgrid(b, b, indexing='ij')
@@ -101,8 +101,8 @@ def nonlinearity_indices(bic2, k, alpha=ALPHA):
     """Return dict(ngi, nli, tnli, mean, max, ngi_threshold_bic2) from a bicoherence map."""
     vals = bic2[np.isfinite(bic2)]
     n_bf = vals.size
-    crit_mean = stats.chi2.ppf(1.0 - alpha, 2 * n_bf) / (2.0 * k * n_bf)
-    crit_one = stats.chi2.ppf(1.0 - alpha, 2) / (2.0 * k)
+    crit_mean = chi2_ppf(1.0 - alpha, 2 * n_bf) / (2.0 * k * n_bf)
+    crit_one = chi2_ppf(1.0 - alpha, 2) / (2.0 * k)
     mean = float(vals.mean())
     return {'ngi': mean - float(crit_mean),
             'nli': abs(float(vals.max()) - (mean + 2.0 * float(vals.std()))),
@@ -125,7 +125,7 @@ def bicoherence(error, sample_time, period_s=None, nfft=None):
         q = max(1, int(period_s / sample_time // SAMPLES_PER_PERIOD))
         nfft = nfft or 64
     if q > 1:
-        x = signal.resample_poly(x - x.mean(), 1, q)
+        x = decimate(x - x.mean(), q)
     if nfft is None:
         # The paper's 128 when the record allows enough segments, else 64.
         nfft = 128 if 1 + (len(x) - 128) // 64 >= ENOUGH_SEGMENTS else 64

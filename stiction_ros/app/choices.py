@@ -1,0 +1,4 @@
+"""The analyzer's option values, in a module light enough for ``--help`` to import."""
+
+MODEL_CHOICES = ('kano', 'choudhury', 'both')
+LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
