@@ -26,6 +26,13 @@ def probe(request):
     rclpy.try_shutdown()
 
 
+@pytest.fixture(scope='session')
+def report_pages(tmp_path_factory):
+    """Return the three report pages of report_pages.py, written once per session."""
+    from report_pages import write_pages
+    return write_pages(tmp_path_factory.mktemp('report_pages'))
+
+
 def pytest_terminal_summary(terminalreporter):
     """Say how many inputs the fuzz suite tried, and how each ended."""
     import sys

@@ -113,9 +113,5 @@ def check_loops(prefix, cases, duration, tmp_path, probe):
     assert not leaked, leaked
 
 
-def test_two_loops_at_once_each_equal_their_offline_twin(probe, tmp_path):
-    check_loops('two', ['undershoot', 'overshoot'], 300.0, tmp_path, probe)
-
-
 def test_three_loops_at_once_each_equal_their_offline_twin(probe, tmp_path):
     check_loops('three', ['undershoot', 'overshoot', 'no_offset'], 400.0, tmp_path, probe)

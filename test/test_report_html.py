@@ -6,18 +6,15 @@ engineer runs it: Table 2.1's undershoot case with --explain (a valve the
 model fits to an MSE near 0), the loop of the demo's second part whose valve
 hides a measurement lag (friction candidates that pass but are not named),
 and the undershoot case without MV (the OP/PV detector and the Hammerstein
-fit).  The page is read with html.parser, as a browser's parser would see
-it; no browser is needed.
+fit): report_pages.py writes them once per test session.  The page is read
+with html.parser, as a browser's parser would see it (test_report_browser.py
+opens the same pages in headless Chromium).
 """
 
 import base64
-import csv
 from html.parser import HTMLParser
-import json
 import re
 import struct
-import subprocess
-import sys
 import zlib
 
 import numpy as np
@@ -34,37 +31,9 @@ NUMBER = re.compile(r'\d+(?:\.\d+)?(?:[eE][-+]?\d+)?')
 URL_ATTRS = ('src', 'href', 'srcset', 'action', 'data', 'poster', 'background', 'formaction')
 
 
-def run(module, *args):
-    res = subprocess.run([sys.executable, '-m', f'stiction_ros.cli.{module}', *map(str, args)],
-                         capture_output=True, text=True, timeout=300)
-    assert res.returncode == 0, res.stderr
-    return res
-
-
-def page(folder, csv_path, *options):
-    run('analyze', csv_path, '--html', folder / 'r.html', '--json', folder / 'r.json',
-        '--quiet', *options)
-    return folder / 'r.html', json.loads((folder / 'r.json').read_text())
-
-
 @pytest.fixture(scope='module')
-def pages(tmp_path_factory):
-    d = tmp_path_factory.mktemp('pages')
-    run('sim', 'concentration_loop.yaml', '--case', 'undershoot', '--quiet', '-o',
-        d / 'undershoot.csv')
-    run('sim', 'hidden_effect_loop.yaml', '--quiet', '-o', d / 'hidden.csv')
-    with open(d / 'undershoot.csv', newline='') as src, \
-            open(d / 'no_mv.csv', 'w', newline='') as dst:
-        rows = list(csv.reader(src))
-        keep = [i for i, name in enumerate(rows[0]) if name != 'mv']
-        csv.writer(dst).writerows([[r[i] for i in keep] for r in rows])
-    out = {}
-    for name, options in (('undershoot', ['--explain']), ('hidden', ['--explain']),
-                          ('no_mv', [])):
-        (d / name).mkdir()
-        out[name] = page(d / name, d / f'{name}.csv', *options)
-    out['csv'] = d / 'undershoot.csv'
-    return out
+def pages(report_pages):
+    return report_pages
 
 
 class Page(HTMLParser):
