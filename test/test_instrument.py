@@ -29,9 +29,12 @@ def test_shift_by_whole_samples_holds_the_first_value_and_halfway_interpolates()
     assert np.array_equal(y[:2], [x[0], x[0]]) and np.array_equal(y[2:], x[:-2])
     half = ins.shift(x, 0.5, [(0, 10)])
     assert np.allclose(half[1:], 0.5 * (x[1:] + x[:-1]))
-    # Each segment is shifted on its own: nothing crosses a gap.
-    two = ins.shift(x, 1.0, [(0, 5), (5, 10)])
-    assert two[5] == x[5] and two[6] == x[5]
+    # Nothing crosses a gap where x is unknown; where it is known, a delay reads it.
+    gap = np.where(np.arange(10) == 5, np.nan, x)
+    two = ins.shift(gap, 1.0, [(0, 5), (6, 10)])
+    assert two[6] == x[6] and two[7] == x[6]
+    known = ins.shift(x, 1.0, [(0, 5), (6, 10)])
+    assert known[6] == x[5] and known[7] == x[6]
 
 
 def test_lag_step_response_is_the_exact_first_order_one():

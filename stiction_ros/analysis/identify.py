@@ -145,6 +145,16 @@ class ValveProblem(fit_core.Problem):
         """Return the exact MSE of eq. 2.8 at (S, J)."""
         return float(self.grid([S], [J])[0, 0]) / self.n
 
+    def output(self, S, J):
+        """Return the MV the model predicts at (S, J), as scored: NaN off the segments."""
+        sim = np.full(len(self.op), np.nan)
+        sse_kernels.valve_output(KERNELS[self.model], self.op, self.mv, self.starts, self.stops,
+                                 float(S), float(J), self.f, sim)
+        out = np.full(len(self.op), np.nan)
+        for a, b in zip(self.starts, self.stops):
+            out[a:b] = sim[a:b]
+        return out
+
 
 def _axis(lo, hi, step, res):
     """Return grid points on multiples of ``res`` from lo to hi (clipped at 0) every ``step``."""

@@ -13,10 +13,9 @@ import re
 import numpy as np
 
 from stiction_ros.analysis.detection import detect, Detection, Judgeable
-from stiction_ros.analysis.identify import given_fit, identify, IdentifyError
+from stiction_ros.analysis.identify import given_fit, identify, IdentifyError, ValveProblem
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine
-from stiction_ros.models import create
 
 MODEL_CHOICES = ('kano', 'choudhury', 'both')
 LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
@@ -117,17 +116,14 @@ def ideal_valve_mse(op, mv, segments):
 
 
 def predict(model, fit, op, mv, segments, sample_time):
-    """Return the model's MV over the record (NaN outside the valid segments)."""
-    params = {'S': fit.S, 'J': fit.J}
-    if fit.filter_name == 'tau':
-        params.update(tau=fit.filter_value, sample_time=sample_time)
-    elif fit.filter_name == 'lam':
-        params['lam'] = fit.filter_value
-    valve = create(model, **params)
-    out = np.full(len(op), np.nan)
-    for a, b in segments:
-        out[a:b] = valve.simulate(op[a:b], y0=mv[a])
-    return out
+    """
+    Return the model's MV over the record (NaN outside the valid segments).
+
+    Sample for sample what the fit scored: the valve runs on through gaps
+    where OP is known, and restarts after a gap in OP (``fit_core``).
+    """
+    problem = ValveProblem(model, op, mv, segments, fit.filter_value, sample_time)
+    return problem.output(fit.S, fit.J)
 
 
 def bridged_valid(record, max_gap=MAX_BRIDGE):

@@ -357,7 +357,8 @@ def main(argv=None):
             summary['bag'] = str(bag)
             summary['respawned'] = respawned
             print(format_summary(summary))
-            print(f'bag: {bag}')
+            # As the user named it (the JSON summary has the absolute path).
+            print(f'bag: {args.record or bag}')
             if args.json:
                 Path(args.json).write_text(json.dumps(summary, indent=2), encoding='utf-8')
     except (StictionError, OSError) as err:

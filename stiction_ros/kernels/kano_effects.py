@@ -27,7 +27,7 @@ import numpy as np
 
 from stiction_ros._jit import njit
 from stiction_ros.kernels.arrays import Floats, Ints
-from stiction_ros.kernels.sse import insert_best
+from stiction_ros.kernels.sse import input_known, insert_best, RESTARTS
 
 (A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
  STRIBECK, CREEP) = range(12)
@@ -147,19 +147,92 @@ def _at_rest(u0: float, k: float, y0: float) -> Floats:
     return st
 
 
+@njit(cache=True)
+def _restart_state(c: int, u0: float, k: float, y0: float) -> Floats:
+    # Restart c after a gap in OP, before sample k (sse.restart_state): 0 and 1 stuck
+    # at y0 with its stick point there, 2 and 3 moving up and down; the input lag at u0.
+    st = _at_rest(u0, k, y0)
+    if c < 2:
+        st[ST_US] = _clip(y0)
+    else:
+        d = 1.0 if c == 2 else -1.0
+        st[ST_U1] = _clip(u0) - d
+        st[ST_U2] = st[ST_U1] - d
+        st[ST_US] = st[ST_U1]
+        st[ST_D] = d
+        st[ST_RESTING] = 0.0
+    return st
+
+
+@njit(cache=True, inline='always')
+def _merged(a: Floats, b: Floats) -> bool:
+    # Two states that will never differ again (the stick point, rest start and rest
+    # position count only while at rest).
+    resting = a[ST_RESTING] > 0.5 or b[ST_RESTING] > 0.5
+    for i in range(STATE_SIZE):
+        if a[i] != b[i] and (resting or not (i == ST_US or i == ST_SINCE or i == ST_YREST)):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _restart(u: Floats, y: Floats, i0: int, i1: int, y0: float, S: float, J: float, p: Floats,
+             bound: float) -> tuple[float, int, int, Floats]:
+    # sse.restart with this model: (SSE of the best restart, first sample not yet
+    # scored, its number, its state), the restarts side by side until they merge.
+    none = np.empty(0)
+    cand = np.empty((RESTARTS, STATE_SIZE))
+    sse = np.zeros(RESTARTS)
+    alive = np.ones(RESTARTS, dtype=np.bool_)
+    for c in range(RESTARTS):
+        cand[c] = _restart_state(c, u[i0], float(i0), y0 if c == 0 else y[i0])
+    left, best, k = RESTARTS, 0, i0
+    while k < i1 and left > 1:
+        for c in range(RESTARTS):
+            if alive[c]:
+                sse[c] = _segment(u, y, k, k + 1, S, J, p, cand[c], sse[c], np.inf, none, none)
+        for c in range(RESTARTS):
+            for c2 in range(c + 1, RESTARTS):
+                if alive[c] and alive[c2] and _merged(cand[c], cand[c2]):
+                    alive[c2 if sse[c] <= sse[c2] else c] = False
+                    left -= 1
+        k += 1
+        best = -1
+        for c in range(RESTARTS):
+            if alive[c] and (best < 0 or sse[c] < sse[best]):
+                best = c
+        if sse[best] > bound:
+            break
+    return sse[best], k, best, cand[best].copy()
+
+
 @njit(cache=True, nogil=True)
 def kano_effects_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Floats, S: float,
                      J: float, p: Floats, limit: float) -> float:
     """
     Return the SSE against ``y`` over the segments, or a number > ``limit`` once past it.
 
-    Segment ``s`` starts at rest at position ``y0s[s]``.
+    The first segment starts at rest at position ``y0s[0]``.  Where OP is known
+    since the last segment the valve runs on through the gap, whose samples are
+    not scored; after a gap in OP the best of the restarts of
+    ``sse.restart_state`` at ``y0s[s]`` is scored (``fit_core`` says why).
     """
     sse = 0.0
     none = np.empty(0)
+    st = none
     for s in range(starts.shape[0]):
-        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
-        sse = _segment(u, y, starts[s], stops[s], S, J, p, st, sse, limit, none, none)
+        i0 = starts[s]
+        k0 = i0
+        if s == 0:
+            st = _at_rest(u[i0], float(i0), y0s[s])
+        elif input_known(u, stops[s - 1], i0):
+            _segment(u, none, stops[s - 1], i0, S, J, p, st, 0.0, np.inf, none, none)
+        else:
+            e, k0, _, st = _restart(u, y, i0, stops[s], y0s[s], S, J, p, limit - sse)
+            sse += e
+            if sse > limit:
+                return sse
+        sse = _segment(u, y, k0, stops[s], S, J, p, st, sse, limit, none, none)
         if sse > limit:
             return sse
     return sse
@@ -189,13 +262,36 @@ def kano_effects_grid(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Floa
 
 
 @njit(cache=True, nogil=True)
+def kano_effects_fit_output(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Floats,
+                            S: float, J: float, p: Floats, out: Floats,
+                            resting_out: Floats) -> None:
+    """
+    Write the position :func:`kano_effects_sse` scores into ``out`` (rests: ``resting_out``).
+
+    The gaps the valve runs on through are written too.  With ``y`` empty, a
+    restart after a gap in OP is the valve stuck at ``y0s[s]``.
+    """
+    none = np.empty(0)
+    st = none
+    for s in range(starts.shape[0]):
+        i0 = starts[s]
+        if s == 0:
+            st = _at_rest(u[i0], float(i0), y0s[s])
+        elif input_known(u, stops[s - 1], i0):
+            _segment(u, none, stops[s - 1], i0, S, J, p, st, 0.0, np.inf, out, resting_out)
+        else:
+            c = 0
+            if y.shape[0] > 0:
+                c = _restart(u, y, i0, stops[s], y0s[s], S, J, p, np.inf)[2]
+            st = _restart_state(c, u[i0], float(i0), y0s[s] if c == 0 else y[i0])
+        _segment(u, none, i0, stops[s], S, J, p, st, 0.0, np.inf, out, resting_out)
+
+
+@njit(cache=True, nogil=True)
 def kano_effects_output(u: Floats, starts: Ints, stops: Ints, y0s: Floats, S: float, J: float,
                         p: Floats, out: Floats, resting_out: Floats) -> None:
     """Write the model's position into ``out`` (and 1.0 where at rest into ``resting_out``)."""
-    none = np.empty(0)
-    for s in range(starts.shape[0]):
-        st = _at_rest(u[starts[s]], float(starts[s]), y0s[s])
-        _segment(u, none, starts[s], stops[s], S, J, p, st, 0.0, np.inf, out, resting_out)
+    kano_effects_fit_output(u, np.empty(0), starts, stops, y0s, S, J, p, out, resting_out)
 
 
 @njit(cache=True)

@@ -12,7 +12,9 @@ same numbers.  Without numba the same functions run as plain Python, slowly.
 Only the samples of the valid segments are scored, but the valve runs on
 between them wherever its input is known (:func:`input_known`): a gap in MV
 alone costs its own samples and nothing else.  Where OP is unknown, the next
-segment restarts at its first measured position (``fit_core`` says why).
+segment starts from the best of four states at its first measured position
+(:func:`restart`; ``stiction_ros.analysis.fit_core`` says why).
+:func:`valve_output` writes the position these kernels score.
 """
 
 import numpy as np
@@ -224,7 +226,6 @@ def kano_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: float
     fd = 0.5 * (S - J)
     sse = 0.0
     uf, u1, u2, us, resting, d, yk = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
-    st = np.empty(STATE)
     for s in range(starts.shape[0]):
         i0 = starts[s]
         k0 = i0
@@ -238,6 +239,7 @@ def kano_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: float
                 uf, u1, u2, us, resting, d, yk = _kano_step(u[k], a, S, J, fd, uf, u1, u2,
                                                             us, resting, d, yk)
         else:
+            st = np.empty(STATE)
             e, k0, _ = restart(0, u, y, i0, stops[s], S, J, a, limit - sse, st)
             sse += e
             if sse > limit:
@@ -261,7 +263,6 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
     fd = 0.5 * (S - J)
     sse = 0.0
     x, xprev, sprev, xss, stuck, d, pos = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
-    st = np.empty(STATE)
     for s in range(starts.shape[0]):
         i0 = starts[s]
         k0 = i0
@@ -274,6 +275,7 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
                 x, xprev, sprev, xss, stuck, d, pos = _choudhury_step(
                     u[k], lam, S, J, fd, x, xprev, sprev, xss, stuck, d, pos)
         else:
+            st = np.empty(STATE)
             e, k0, _ = restart(1, u, y, i0, stops[s], S, J, lam, limit - sse, st)
             sse += e
             if sse > limit:
@@ -374,7 +376,8 @@ def kano_output(u: Floats, y0: float, S: float, J: float, a: float) -> Floats:
     return y
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True,
+      aot='void(i8, f8[::1], f8[::1], i8[::1], i8[::1], f8, f8, f8, f8[::1])')
 def valve_output(kernel_id: int, u: Floats, y: Floats, starts: Ints, stops: Ints, S: float,
                  J: float, f: float, out: Floats) -> None:
     """

@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from stiction_ros._jit import load_numba
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
@@ -55,9 +56,17 @@ def model_output(op, mv, segments, S, J, p):
     rest = np.zeros(len(op))
     starts = np.array([a for a, _ in segments], dtype=np.int64)
     stops = np.array([b for _, b in segments], dtype=np.int64)
-    y0s = start_positions(np.asarray(mv, dtype=np.float64), starts, stops)
-    kk.kano_effects_output(np.ascontiguousarray(op, dtype=np.float64), starts, stops, y0s,
-                           float(S), float(J), p, out, rest)
+    y = np.ascontiguousarray(mv, dtype=np.float64)
+    y0s = start_positions(y, starts, stops)
+    kk.kano_effects_fit_output(np.ascontiguousarray(op, dtype=np.float64), y, starts, stops,
+                               y0s, float(S), float(J), p, out, rest)
+    # The model ran on through gaps where OP is known; it is shown (and scored) on the
+    # segments alone.
+    scored = np.zeros(len(op), dtype=bool)
+    for a, b in segments:
+        scored[a:b] = True
+    out[~scored] = np.nan
+    rest[~scored] = 0.0
     return out, rest
 
 
@@ -102,6 +111,9 @@ def fit_many(prepared, jobs=1, progress=None, labels=None):
         return fit
 
     if jobs > 1 and len(tasks) > 1:
+        # Threads share the GIL unless the kernels are numba's own (nogil); the
+        # ahead-of-time builds hold it.
+        load_numba()
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             fits = list(pool.map(one, tasks))
     else:

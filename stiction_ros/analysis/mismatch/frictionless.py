@@ -15,6 +15,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.kernels.chain import limited
 
@@ -23,7 +24,7 @@ def _sse(op, mv, segments, idx, v, free):
     """Return (offset, gain, SSE) of the linear and rate stages in ``v``."""
     u = ins.shift(op, v['delay'], segments)
     if v.get('rate', 0.0) > 0.0:
-        u = limited(u, segments, v['rate'])
+        u = limited(u, carried_runs(segments, u), v['rate'])
     y = ins.lag(ins.lag(u, v['tau'], segments), v['tau2'], segments)
     return ins.affine(y, mv, idx, 'offset' in free, 'gain' in free)
 

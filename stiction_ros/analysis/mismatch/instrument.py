@@ -24,6 +24,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
+from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.identify import identify, plausible_box
 from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUTION, \
     start_positions
@@ -84,11 +85,16 @@ def limits(sample_time: float) -> tuple[float, float]:
 
 
 def shift(x: np.ndarray, d: float, segments) -> np.ndarray:
-    """Return ``x`` delayed by ``d`` samples (linear interpolation) within each segment."""
+    """
+    Return ``x`` delayed by ``d`` samples (linear interpolation) within each run.
+
+    A run is a segment, or several joined across gaps where ``x`` is known
+    (``fit_core.carried_runs``): a dead time reads OP from a gap in MV.
+    """
     out = np.array(x, dtype=np.float64, copy=True)
     if d == 0.0:
         return out
-    for a, b in segments:
+    for a, b in carried_runs(segments, x):
         # A negative d (a fraction of a sample) reads ahead; the last value is held.
         pos = np.clip(np.arange(b - a) - d, 0.0, b - a - 1)
         i0 = np.floor(pos).astype(np.int64)
@@ -100,12 +106,12 @@ def shift(x: np.ndarray, d: float, segments) -> np.ndarray:
 
 
 def lag(x: np.ndarray, tau: float, segments) -> np.ndarray:
-    """Return ``x`` through a first-order lag of ``tau`` samples, at rest at each segment start."""
+    """Return ``x`` through a first-order lag of ``tau`` samples, at rest at each run start."""
     out = np.array(x, dtype=np.float64, copy=True)
     if tau <= 0.0:
         return out
     p = math.exp(-1.0 / tau)
-    for a, b in segments:
+    for a, b in carried_runs(segments, x):
         out[a:b], _ = lfilter([1.0 - p], [1.0, -p], out[a:b], zi=[p * out[a]])
     return out
 
@@ -134,13 +140,21 @@ def indices(segments) -> np.ndarray:
 
 
 def friction_output(u: np.ndarray, segments, S: float, J: float, y: np.ndarray) -> np.ndarray:
-    """Return Kano's position for input ``u`` over ``segments``, started at rest at ``y``."""
+    """
+    Return Kano's position for input ``u`` over ``segments``, started at rest at ``y``.
+
+    After a gap in ``u``, the restart that fits ``y`` best (``fit_core``).  The
+    gaps it runs on through (``u`` known) hold positions too, so that a lag
+    after the friction runs on through them as well.
+    """
     out = np.full(len(u), np.nan)
     starts = np.array([a for a, _ in segments], dtype=np.int64)
     stops = np.array([b for _, b in segments], dtype=np.int64)
-    y0s = start_positions(np.asarray(y, dtype=np.float64), starts, stops)
-    kk.kano_effects_output(np.ascontiguousarray(u, dtype=np.float64), starts, stops, y0s,
-                           float(S), float(J), kk.plain_params(), out, np.zeros(len(u)))
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    y0s = start_positions(y, starts, stops)
+    kk.kano_effects_fit_output(np.ascontiguousarray(u, dtype=np.float64), y, starts, stops,
+                               y0s, float(S), float(J), kk.plain_params(), out,
+                               np.zeros(len(u)))
     return out
 
 
@@ -171,7 +185,7 @@ def chain_output(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit) -> np.
     else:
         u = shift(op, p['delay'], segments)
         if p.get('rate', 0.0) > 0.0:
-            u = limited(u, segments, p['rate'])
+            u = limited(u, carried_runs(segments, u), p['rate'])
     y = lag(lag(u, 0.0 if before else p['tau'], segments), p['tau2'], segments)
     out = np.full(len(op), np.nan)
     idx = indices(segments)
