@@ -20,7 +20,7 @@ from stiction_ros.analysis.pipeline import fit_models, Options
 from stiction_ros.analysis.record import assemble
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.kernels import kano_effects as kk
-from stiction_ros.kernels.sse import kano_output
+from stiction_ros.kernels.sse import kano_output, restart_position, RESTART_SAMPLES
 from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop
@@ -169,3 +169,15 @@ def test_explain_names_no_dead_time_for_a_gap(explained, blank):
     assert 'delay' not in m['model']['params']
     fit, fit_ref = rep['fits'][0], ref['fits'][0]
     assert abs(fit['S'] - fit_ref['S']) <= TOLERANCE and abs(fit['J'] - fit_ref['J']) <= TOLERANCE
+
+
+def test_the_stuck_restart_sits_at_the_median_of_its_first_samples():
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        n = int(rng.integers(1, 3 * RESTART_SAMPLES))
+        y = np.round(rng.normal(50.0, 2.0, n), int(rng.integers(0, 4)))
+        i0 = int(rng.integers(0, n))
+        i1 = int(rng.integers(i0 + 1, n + 1))
+        want = float(np.median(y[i0:min(i1, i0 + RESTART_SAMPLES)]))
+        assert restart_position(y, i0, i1, 0) == want
+        assert restart_position(y, i0, i1, 1) == y[i0]

@@ -24,6 +24,7 @@ profile along each axis alone would be too narrow.
 """
 
 from dataclasses import dataclass, field
+import functools
 import math
 import time
 
@@ -268,13 +269,30 @@ def plausible_box(op, mv):
     return min(s_max, 100.0), max(min(j_max, 100.0), 0.5)
 
 
+@dataclass(frozen=True)
+class SearchProgress:
+    """Where one identification stands: ``model``'s search ``search`` of ``searches``."""
+
+    model: str
+    search: int
+    searches: int
+    level: int
+    evaluations: int
+
+
+def _report(progress, model, search, searches, level, evaluations):
+    progress(SearchProgress(model, search, searches, level, evaluations))
+
+
 def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.01,
              filter_values=None, interval=True, progress=None):
     """
     Identify (S, J) of ``model`` on measured OP and MV; return a :class:`Fit`.
 
     ``filter_values``: if given, a sequence of air-chamber time constants
-    (Kano, seconds) or EWMA weights (Choudhury) to try; the best is kept.
+    (Kano, seconds) or EWMA weights (Choudhury) to try; the best is kept, one
+    search each.  ``progress`` gets a :class:`SearchProgress` at every level
+    of every search.
     """
     t0 = time.perf_counter()
     op = np.asarray(op, dtype=np.float64)
@@ -285,10 +303,12 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
     candidates = [None] if filter_values is None else list(filter_values)
     best = None
     problems = []
-    for fv in candidates:
+    for i, fv in enumerate(candidates):
         problem = ValveProblem(model, op, mv, segments, fv, sample_time)
         problems.append(problem)
-        sse, S, J = search(problem, s_max, j_max, resolution, progress=progress)
+        step = None if progress is None else functools.partial(
+            _report, progress, model, i + 1, len(candidates))
+        sse, S, J = search(problem, s_max, j_max, resolution, progress=step)
         if best is None or sse < best[0]:
             best = (sse, S, J, fv, problem)
     sse, S, J, fv, problem = best

@@ -13,7 +13,8 @@ import re
 import numpy as np
 
 from stiction_ros.analysis.detection import detect, Detection, Judgeable
-from stiction_ros.analysis.identify import given_fit, identify, IdentifyError, ValveProblem
+from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
+                                            ValveProblem)
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine
 
@@ -201,8 +202,8 @@ def run_detection(record, win, held, integrating, model_path=None):
 
 
 def analyze(record: Record, options: Options | None = None,
-            progress: Callable[[int, int], object] | None = None) -> Analysis:
-    """Return the :class:`Analysis` of ``record``."""
+            progress: Callable[[SearchProgress], object] | None = None) -> Analysis:
+    """Return the :class:`Analysis` of ``record``; ``progress`` hears each search level."""
     options = options or Options()
     notes = list(record.notes)
     report = {

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import math
 import numbers
 import os
-import re
 import time
 from typing import Callable, TYPE_CHECKING
 
@@ -28,7 +27,8 @@ from stiction_ros.app.progress import print_nothing, Step
 from stiction_ros.errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
-    from stiction_ros.analysis.pipeline import Analysis, Options
+    from stiction_ros.analysis.identify import SearchProgress
+    from stiction_ros.analysis.pipeline import Analysis
     from stiction_ros.analysis.record import Record
 
 # LOOP_TYPES and MODEL_CHOICES are the choices of stiction_ros.analysis.pipeline.Options,
@@ -40,16 +40,10 @@ COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp')
 COLUMNS_FIX = 'write SIGNAL=COLUMN pairs, e.g. --columns op=FIC101.OP,pv=FIC101.PV,t=Timestamp'
 
 Say = Callable[[str], None]
-# How many EWMA weights fit_models (stiction_ros.analysis.pipeline) tries for Choudhury's
-# model with --fit-filter, one search each (Kano's lags are its FILTER_TAUS).
-CHOUDHURY_FILTER_SEARCHES = 8
 # identify.search's grid: its resolution and coarse points (its defaults, as the pipeline
 # calls it); the levels shown as 'level 2/5' follow from them.
 SEARCH_RESOLUTION = 0.01
 SEARCH_COARSE_POINTS = 96
-# The candidate-fit lines of stiction_ros.analysis.mismatch.explain.fit_many.
-FITTED = re.compile(r'(?:bootstrap (?P<rep>\d+)/(?P<reps>\d+): )?fitted (?P<effect>\S+) '
-                    r'\((?P<done>\d+)/(?P<total>\d+)\)')
 
 
 def default_jobs() -> int:
@@ -284,7 +278,7 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
         + (f' ({sampling})' if sampling else '') + ', signals '
         f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
     analysis = analyze(record, pipeline_options,
-                       progress=SearchSteps(record, pipeline_options, say))
+                       progress=SearchSteps(record, say))
     report = analysis.report
     if options.explain:
         run_explain(analysis, options, say)
@@ -327,15 +321,14 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
     analysis.explain_arrays = arrays
 
 
-def explain_step(msg: str) -> str:
+def explain_step(msg: str) -> str | Step:
     """Return an ``--explain`` progress line, its candidate fits as one counted :class:`Step`."""
-    m = FITTED.fullmatch(msg)
-    if m is None:
+    from stiction_ros.analysis.mismatch.explain import Fitted
+    if not isinstance(msg, Fitted):
         return msg
-    done, total = int(m['done']), int(m['total'])
-    detail = '' if done >= total else m['effect'] + (
-        f' (bootstrap replicate {m["rep"]}/{m["reps"]})' if m['rep'] else '')
-    return Step('candidate fits', done, total, detail)
+    detail = '' if msg.done >= msg.total else msg.effect + (
+        f' (bootstrap replicate {msg.replicate}/{msg.replicates})' if msg.replicate else '')
+    return Step('candidate fits', msg.done, msg.total, detail)
 
 
 def search_levels(record: Record) -> int:
@@ -363,38 +356,16 @@ def search_levels(record: Record) -> int:
 
 
 class SearchSteps:
-    """
-    The pipeline's search progress ``(level, evaluations)`` as steps naming the model.
+    """The pipeline's :class:`SearchProgress` as steps naming the model searched."""
 
-    ``fit_models`` searches each model in turn (once per filter value with
-    ``--fit-filter``); a level that does not follow the last one starts the
-    next search, so the model searched is known from the count of searches.
-    """
-
-    def __init__(self, record: Record, options: Options, say: Say) -> None:
-        from stiction_ros.analysis.pipeline import FILTER_TAUS
+    def __init__(self, record: Record, say: Say) -> None:
         self.say = say
-        self.models = options.models
-        filters = {'kano': len(FILTER_TAUS), 'choudhury': CHOUDHURY_FILTER_SEARCHES}
-        self.per_model = {m: filters[m] if options.fit_filter else 1 for m in self.models}
         self.levels = search_levels(record) if record.has('mv') else 0
-        self.search, self.last = -1, None
 
-    def __call__(self, level: int, evaluations: int) -> None:
-        """Say which model's search reached ``level`` after ``evaluations`` evaluations."""
-        if self.last is None or level <= self.last:
-            self.search += 1
-        self.last = level
-        self.levels = max(self.levels, level)
-        i, model = self.search, self.models[-1]
-        for name in self.models:
-            if i < self.per_model[name]:
-                model = name
-                break
-            i -= self.per_model[name]
+    def __call__(self, p: SearchProgress) -> None:
+        """Say which model's search reached which level after how many evaluations."""
+        self.levels = max(self.levels, p.level)
         # With --fit-filter one bar runs over the levels of every filter value's search.
-        per = self.per_model[model]
-        i = min(i, per - 1)
-        which = f'filter {i + 1}/{per}, ' if per > 1 else ''
-        self.say(Step(f'{model}: search level', i * self.levels + level, per * self.levels,
-                      f'{which}{evaluations} evaluations'))
+        which = f'filter {p.search}/{p.searches}, ' if p.searches > 1 else ''
+        self.say(Step(f'{p.model}: search level', (p.search - 1) * self.levels + p.level,
+                      p.searches * self.levels, f'{which}{p.evaluations} evaluations'))

@@ -90,9 +90,38 @@ def prepare(op, mv, fit_segments, sample_time):
     return base, problem, ctx, plain_sse
 
 
-def fit_many(prepared, jobs=1, progress=None, labels=None):
+class Fitted(str):
+    """
+    A progress message that one candidate fit is done: the text, and its numbers.
+
+    A ``str`` for whoever prints progress as text; ``effect``, ``done``,
+    ``total`` and ``replicate`` (0 for the record itself, r for bootstrap
+    replicate r of ``replicates``) for whoever counts.
+    """
+
+    effect: str
+    done: int
+    total: int
+    replicate: int
+    replicates: int
+
+    @classmethod
+    def of(cls, effect: str, done: int, total: int, replicate: int = 0,
+           replicates: int = 0) -> 'Fitted':
+        """Return the message of fit ``done`` of ``total`` (``effect``, on ``replicate``)."""
+        label = f'bootstrap {replicate}/{replicates}: ' if replicate else ''
+        msg = cls(f'{label}fitted {effect} ({done}/{total})')
+        msg.effect, msg.done, msg.total = effect, done, total
+        msg.replicate, msg.replicates = replicate, replicates
+        return msg
+
+
+def fit_many(prepared, jobs=1, progress=None, replicates=0):
     """
     Fit every candidate on every prepared record; return one list of fits per record.
+
+    ``prepared[0]`` is the record; with ``replicates`` > 0 the rest are its
+    bootstrap replicates, so named in the :class:`Fitted` progress messages.
 
     The fits are independent and their kernels release the GIL, so ``jobs``
     threads run them side by side; the results do not depend on ``jobs``.
@@ -106,8 +135,8 @@ def fit_many(prepared, jobs=1, progress=None, labels=None):
         fit = fit_effect(problem, effect, ctx, base.S, base.J, plain_sse)
         done[0] += 1
         if progress is not None:
-            label = labels[i] if labels else ''
-            progress(f'{label}fitted {effect.eid} ({done[0]}/{len(tasks)})')
+            progress(Fitted.of(effect.eid, done[0], len(tasks), i if replicates else 0,
+                               replicates))
         return fit
 
     if jobs > 1 and len(tasks) > 1:
@@ -122,10 +151,10 @@ def fit_many(prepared, jobs=1, progress=None, labels=None):
     return [fits[i * k:(i + 1) * k] for i in range(len(prepared))]
 
 
-def fit_all(op, mv, fit_segments, sample_time, progress=None, label='', jobs=1):
+def fit_all(op, mv, fit_segments, sample_time, progress=None, jobs=1):
     """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
     prepared = prepare(op, mv, fit_segments, sample_time)
-    return (*prepared, fit_many([prepared], jobs, progress, [label])[0])
+    return (*prepared, fit_many([prepared], jobs, progress)[0])
 
 
 def lr(n, plain_sse, sse):
@@ -198,8 +227,7 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         reps = 0
     ys = replicates(op, mv, fit_segments, base, plain_sse, n_used, reps, seed)
     records = [prepared] + [prepare(op, y, fit_segments, sample_time) for y in ys]
-    labels = [''] + [f'bootstrap {r + 1}/{reps}: ' for r in range(reps)]
-    all_fits = fit_many(records, jobs, say, labels)
+    all_fits = fit_many(records, jobs, say, reps)
     fits = all_fits[0]
     stats = {f.effect: lr(n_used, plain_sse, f.sse) for f in fits}
     if calibrated is None:
