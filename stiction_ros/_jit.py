@@ -45,6 +45,7 @@ JIT_ONLY = 'STICTION_ROS_JIT_ONLY'
 
 _lock = threading.RLock()
 _kernels: list[Kernel] = []
+_aot_functions: list[tuple[Callable[..., Any], str]] = []
 _numba: ModuleType | None = None
 _aot: ModuleType | None = None
 _aot_looked = False
@@ -200,11 +201,20 @@ def load_numba() -> None:
 
 def _decorate(function: Callable[..., Any], options: dict[str, Any], aot: str | None) -> Any:
     with _lock:
+        if aot is not None:
+            # Recorded whenever the module is imported, before numba loads or after:
+            # stiction-precompile imports some kernel modules only once numba is in.
+            _aot_functions.append((function, aot))
         if _numba is not None:
             return _numba.njit(**options)(function)
         kernel = Kernel(function, options, aot)
         _kernels.append(kernel)
         return kernel
+
+
+def ahead_of_time_functions() -> list[tuple[Callable[..., Any], str]]:
+    """Return (function, signature) of every kernel declared with ``aot`` imported so far."""
+    return list({export_name(fn): (fn, sig) for fn, sig in _aot_functions}.values())
 
 
 def ahead_of_time_kernels() -> list[Kernel]:
@@ -220,7 +230,7 @@ def build_ahead_of_time(output_dir: str | None = None) -> list[str]:
     Raises whatever numba's ahead-of-time compiler raises (no C compiler, for
     one); the kernels then stay just-in-time.
     """
-    kernels = ahead_of_time_kernels()
+    functions = ahead_of_time_functions()
     # numba compiles a kernel's callees from its module's globals: dispatchers.
     load_numba()
     from numba.pycc import CC
@@ -228,9 +238,8 @@ def build_ahead_of_time(output_dir: str | None = None) -> list[str]:
     cc = CC(AOT_MODULE.rsplit('.', 1)[-1])
     cc.output_dir = output_dir
     cc.verbose = False
-    for k in kernels:
-        assert k.aot is not None
-        cc.export(export_name(k.py_func), k.aot)(k.py_func)
+    for function, signature in functions:
+        cc.export(export_name(function), signature)(function)
     # The manifest goes last, and only after a good build: a failed build
     # leaves no manifest that would vouch for an old module.
     manifest = os.path.join(output_dir, os.path.basename(AOT_MANIFEST))
@@ -239,8 +248,8 @@ def build_ahead_of_time(output_dir: str | None = None) -> list[str]:
     cc.compile()
     with open(manifest, 'w', encoding='utf-8') as f:
         json.dump({'sources': sources_hash(), 'numba': getattr(_numba, '__version__', ''),
-                   'kernels': [export_name(k.py_func) for k in kernels]}, f, indent=1)
-    return [export_name(k.py_func) for k in kernels]
+                   'kernels': [export_name(fn) for fn, _ in functions]}, f, indent=1)
+    return [export_name(fn) for fn, _ in functions]
 
 
 if TYPE_CHECKING:

@@ -124,3 +124,20 @@ def test_signatures_are_read_argument_by_argument():
         'i8', 'f8[::1]', 'f8[:, ::1]', 'b1']
     assert _jit.arguments('Tuple((f8[:, ::1], i8[:, ::1]))(f8[::1], i8)') == ['f8[::1]', 'i8']
     assert _jit.arguments('void()') == []
+
+
+def test_kernel_modules_imported_after_numba_are_built_too():
+    # stiction-precompile loads numba in its first stages and imports some kernel
+    # modules only afterwards: their aot kernels must still be in the build.
+    code = ('import json\n'
+            'from stiction_ros import _jit\n'
+            'from stiction_ros.kernels import valves\n'
+            '_jit.load_numba()\n'
+            'from stiction_ros.kernels import hammerstein\n'
+            'print(json.dumps(sorted(_jit.export_name(f) for f, _ in '
+            '_jit.ahead_of_time_functions())))\n')
+    names = python(code)
+    assert 'hammerstein___grid_sse' in names and 'valves__kano_run' in names
+    with open(_jit.AOT_MANIFEST, encoding='utf-8') as f:
+        built = json.load(f)['kernels']
+    assert 'hammerstein___grid_sse' in built and 'hammerstein__segment_path' in built
