@@ -217,11 +217,6 @@ def ahead_of_time_functions() -> list[tuple[Callable[..., Any], str]]:
     return list({export_name(fn): (fn, sig) for fn, sig in _aot_functions}.values())
 
 
-def ahead_of_time_kernels() -> list[Kernel]:
-    """Return the kernels declared with ``aot`` among the imported kernel modules."""
-    return [k for k in _kernels if k.aot is not None]
-
-
 def build_ahead_of_time(output_dir: str | None = None) -> list[str]:
     """
     Build the ``aot`` kernels of the imported kernel modules into one extension module.
