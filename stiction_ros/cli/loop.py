@@ -31,6 +31,7 @@ from stiction_ros.app.live_summary import format_summary, summarise
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import LoopError, StictionError
+from stiction_ros.nodes.realtime import set_fifo
 from stiction_ros.sim.launch_plan import resolve_config
 from stiction_ros.sim.loop_config import ConfigError, load_loop, parse_overrides
 from stiction_ros.sim.ros_params import loop_extras, LOOP_NODES, params_file, write_node_params
@@ -231,6 +232,7 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     procs = Processes(work)
     sim_arg = ['-p', f'use_sim_time:={"true" if sim else "false"}']
+    supervising = not sim and realtime_priority > 0 and _supervise(realtime_priority + 1)
     try:
         if record:
             procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
@@ -276,8 +278,25 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
         time.sleep(0.5)
     finally:
         procs.stop(['sim_clock', 'controller', 'valve', 'plant', 'loop_nodes'])
+        if supervising:
+            set_fifo(0)
         procs.stop(['recorder'], timeout=30.0)
     return record
+
+
+def _supervise(priority):
+    """
+    Run this launcher above the real-time loop nodes; return True if it could.
+
+    It sleeps but for a poll every 0.1 s, and must always get the core to stop
+    the run at its end, however busy the nodes are; its child processes start
+    on the normal scheduler (SCHED_RESET_ON_FORK) and raise themselves.
+    """
+    try:
+        set_fifo(min(priority, 99))
+    except (AttributeError, OSError):
+        return False                    # the nodes will say that they cannot either
+    return True
 
 
 class Terminated(KeyboardInterrupt):

@@ -58,6 +58,7 @@ from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
 from stiction_ros.nodes.params import check_choices, check_fixed, coerce, declare, Param
 from stiction_ros.nodes.params import fixed_reason, plain
+from stiction_ros.nodes.realtime import align_timer, CpuWatch, set_fifo
 
 SLOTS = 4
 # Reliable with room for a few seconds of backlog: a slow subscriber (the
@@ -153,7 +154,7 @@ class SampledNode(Node):
             # On wall time one tick per sample, at this node's phase: a quarter of
             # the wake-ups, so the nodes contend less for the cores.
             self._timer = self.create_timer(self.sample_time, self._tick)
-            self._align_timer(self._slot * (self._ts_ns // SLOTS))
+            align_timer(self._timer, self._ts_ns, self._slot * (self._ts_ns // SLOTS))
 
     def _realtime(self, priority):
         # A busy machine delays a woken process by up to a scheduler slice (ms);
@@ -161,35 +162,24 @@ class SampledNode(Node):
         if priority <= 0:
             return
         try:
-            # Every thread: the DDS threads that hand messages to this one too, or this
-            # one could wait for them behind the normal scheduler (priority inversion).
-            for tid in os.listdir('/proc/self/task'):
-                os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
+            set_fifo(priority)
         except (AttributeError, OSError) as err:
             self.get_logger().warning(f'cannot run under SCHED_FIFO {priority} ({err}); '
                                       'keeping the normal scheduler')
+            return
+        self._cpu_watch = CpuWatch()
+        self._cpu_timer = self.create_timer(1.0, self._watch_cpu,
+                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def _align_timer(self, phase_ns, slack_ns=50_000, tries=20):
-        """
-        Put the timer's ticks just after ``phase_ns`` into each sample of the system clock.
-
-        Every process on the machine then shares the same grid of phases.  The
-        timer's grid is fixed when it is reset, so a reset that lands late (a
-        sleep that overran, a busy machine) would offset every tick of the run
-        (by 0.5-1.5 ms, measured); it is redone until the offset is under
-        ``slack_ns``.
-        """
-        ts = self._ts_ns
-        for _ in range(tries):
-            wait = (phase_ns - time.time_ns()) % ts
-            if wait > 2_000_000:
-                time.sleep((wait - 1_000_000) / 1e9)
-            while (time.time_ns() - phase_ns) % ts > slack_ns // 2:
-                pass  # the last millisecond spun: sleep overruns it
-            self._timer.reset()
-            offset = (time.time_ns() + self._timer.time_until_next_call() - phase_ns) % ts
-            if offset <= slack_ns:
-                return
+    def _watch_cpu(self):
+        if not self._cpu_watch.update(time.monotonic(), time.process_time()):
+            return
+        self._cpu_timer.cancel()
+        set_fifo(0)
+        self.get_logger().warning(
+            f'under SCHED_FIFO this process used {100 * self._cpu_watch.share:.0f} % of a core '
+            f'for {self._cpu_watch.windows} s: it cannot keep {1 / self.sample_time:g} Hz on this '
+            'machine and would starve every other process; back on the normal scheduler')
 
     def _tick(self):
         now = self.get_clock().now().nanoseconds
