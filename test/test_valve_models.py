@@ -1,6 +1,9 @@
 """Properties the physics of a sticky valve demands of the data-driven models."""
 
 import math
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -283,3 +286,28 @@ def test_a_model_switch_at_rest_does_not_move_the_valve():
     other = create('choudhury', S=6.0, J=2.0)
     other.reset(y0=y[-1], u_rest=55.5)
     assert [other.step(55.5) for _ in range(5)] == [y[-1]] * 5
+
+
+def test_simulate_keeps_to_one_core():
+    """
+    A long simulate() runs on the calling thread only.
+
+    Its input check once used np.dot, which OpenBLAS splits across threads that
+    then spin: every call held a second core (process CPU 1.98x the wall time).
+    """
+    script = textwrap.dedent("""
+        import time
+        import numpy as np
+        from stiction_ros.models import create
+        op = 50 + np.cumsum(np.random.default_rng(0).normal(0, 0.5, 1_000_000))
+        model = create('kano', S=5.0, J=2.0)
+        model.simulate(op)
+        wall, cpu = time.perf_counter(), time.process_time()
+        while time.perf_counter() - wall < 1.0:
+            model.simulate(op)
+        print((time.process_time() - cpu) / (time.perf_counter() - wall))
+    """)
+    share = float(subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                                 check=True).stdout)
+    # One thread cannot use more than one core; the margin is for the clocks' granularity.
+    assert share < 1.25, share
