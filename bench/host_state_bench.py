@@ -141,8 +141,8 @@ def markdown(speeds):
         ' reorder resources a thread gets, and a latency-bound chain does not use them'
         ' anyway). Not our own other vCPU: a process spinning on it in every other 2 s'
         ' block leaves the medians where they were (last column). A process that measures'
-        ' for a fraction of a second lands in one state or the other, hence "2x between processes". It cannot be removed from inside the'
-        ' guest; the models section reports the best (core to ourselves) and the median'
+        ' for a fraction of a second lands in one state or the other, hence "2x between'
+        ' processes". It cannot be removed from inside the guest; the models section reports the best (core to ourselves) and the median'
         ' over seconds of repeats for that reason.',
         '',
     ]
