@@ -142,7 +142,8 @@ def markdown(speeds):
         ' anyway). Not our own other vCPU: a process spinning on it in every other 2 s'
         ' block leaves the medians where they were (last column). A process that measures'
         ' for a fraction of a second lands in one state or the other, hence "2x between'
-        ' processes". It cannot be removed from inside the guest; the models section reports the best (core to ourselves) and the median'
+        ' processes". It cannot be removed from inside the guest; the models section'
+        ' reports the best (core to ourselves) and the median'
         ' over seconds of repeats for that reason.',
         '',
     ]
