@@ -81,3 +81,43 @@ def test_a_late_input_is_waited_for_on_sim_time(probe, tmp_path, wait):
         assert mv[0] == 50.0 and np.array_equal(mv[1:], late), np.flatnonzero(mv[1:] != late)
         wait_for(lambda: len(marks) >= len(ops) - 2, timeout=5.0,
                  what=f'a mark per sample, got {marks}')
+
+
+def test_an_input_that_comes_before_the_clock_catches_up_is_not_held(probe, tmp_path):
+    """
+    The OP of sample k can reach the valve before the /clock ticks that lead to k do.
+
+    The valve's clock then still reads sample k - 1 when OP(k) comes; dated by
+    that clock it looked a sample late, and the lockstep demo warned of a held
+    OP although nothing was lost.  Here every OP is sent before its clock ticks.
+    """
+    ns = '/clock_behind'
+    marks = []
+    probe.node.create_subscription(KeyValue, f'{ns}/held_inputs',
+                                   lambda m: marks.append(int(m.value.split()[0])), DATA_QOS)
+    probe.listen(f'{ns}/mv')
+    op_pub = probe.publisher(f'{ns}/op')
+    proc = start_node('valve', VALVE, ns, str(tmp_path), extra=['-p', 'use_sim_time:=true'])
+    k0 = 500
+    try:
+        wait_for(lambda: op_pub.get_subscription_count() >= 1
+                 and probe.node.count_publishers(f'{ns}/mv') >= 1,
+                 timeout=30.0, what='the valve to match the test')
+        time.sleep(0.5)
+        ops = 50.0 + 10.0 * np.sin(2 * np.pi * np.arange(20) / 10)
+        for i, op in enumerate(ops):
+            k = k0 + i
+            before = len(probe.values(f'{ns}/mv'))
+            probe.publish(f'{ns}/op', op)
+            time.sleep(0.05)                 # it reaches the valve, its clock at k - 1
+            for slot in range(4):
+                probe.publish_clock(k * TS + slot * TS / 4)
+                time.sleep(0.005)
+            wait_for(lambda: len(probe.values(f'{ns}/mv')) > before, timeout=10.0,
+                     what=f'the valve to act at sample {k}')
+        mv = np.array(probe.values(f'{ns}/mv'))
+    finally:
+        assert stop(proc) == 0, (tmp_path / 'valve.log').read_text()
+    assert marks == []
+    assert np.array_equal(mv, Kano(S=4.0, J=1.5).simulate(ops, y0=50.0))
+    assert 'none on a held input' in (tmp_path / 'valve.log').read_text()

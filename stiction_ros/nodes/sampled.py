@@ -125,6 +125,7 @@ class SampledNode(Node):
         self._inject_rng = np.random.default_rng(self.values['inject_seed'])
         self._in_flight = deque()       # (due ns, topic, value, sample), due times in order
         self._arrived = {}              # topic: messages since the node last acted (any)
+        self._owed = set()              # inputs missing or held at the last action
         self._needed = []               # the inputs a sample waits for (watched ones)
         self._pending = None            # on sim time: the sample waiting for an input
         self.waited = {'samples': 0, 'gave_up': 0}
@@ -251,8 +252,10 @@ class SampledNode(Node):
         # How late this sample's action finished, for the summary at shutdown.
         due = k * self._ts_ns + self._slot * self._ts_ns // SLOTS
         self._late.append(self.get_clock().now().nanoseconds - due)
+        self._owed = {topic for topic, guard in self.input_guards.items() if not guard.fresh}
         for topic, guard in self.input_guards.items():
             if guard.acted(k):
+                self._owed.add(topic)
                 # The sample and the value acted on: an analyzer can put it in place of
                 # the recorded one, at the right sample however late this message is.
                 self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
@@ -347,9 +350,21 @@ class SampledNode(Node):
         sample = now // self._ts_ns
         self._arrived[topic] = self._arrived.get(topic, 0) + 1
         k = self._pending
+        lag = self._lags.get(topic, 0)
         if k is not None:
             # The message this node waits for, whatever its clock read when it came.
-            sample = max(sample, k - self._lags.get(topic, 0))
+            sample = max(sample, k - lag)
+        elif self.last_k is None:
+            sample = None               # before the first action nothing can be late
+        else:
+            # Sent after this node's last action (each producer publishes once per
+            # sample, after it), though this node's clock may not show that yet: the
+            # newer /clock can be queued behind the message (seen as a false "held").
+            # The first message of an input missing or held at that action may be
+            # the one that was due then, late.
+            owed = topic in self._owed
+            sample = max(sample, self.last_k + (0 if owed else 1) - lag)
+        self._owed.discard(topic)
         self._receive(topic, value, now, sample)
         if k is not None and not self._missing():
             self._pending = None
