@@ -361,7 +361,8 @@ def main(argv=None):
         logs = args.logs or (str(Path(args.record).resolve()) + '.logs' if args.record else None)
         t0 = time.monotonic()
         mode = f'rtf {args.rtf:g}' if args.rtf else 'wall time'
-        print(f'loop: {cfg.get("name", "loop")} {cfg.get("case") or ""} on {mode}; '
+        title = ' '.join(str(x) for x in (cfg.get('name', 'loop'), cfg.get('case')) if x)
+        print(f'loop: {title} on {mode}; '
               f'node logs in {logs or "a temporary directory"}', file=sys.stderr)
         if not 0 <= args.realtime_priority <= 98:
             raise ConfigError('--realtime-priority must be 0 (off) to 98')
