@@ -27,22 +27,32 @@ VALVE = {'model': 'kano', 'S': 4.0, 'J': 1.5, 'sample_time': TS, 'initial_positi
 LATE = 0.15         # wall seconds between the action instant and the OP of that sample
 
 
-@pytest.mark.parametrize('wait', [0.5, 0.0])
-def test_a_late_input_is_waited_for_on_sim_time(probe, tmp_path, wait):
-    ns = f'/inwait{int(wait * 10)}'
+def sim_time_valve(probe, ns, log_dir, **params):
+    """Start a valve on sim time, matched with the test; return (process, held marks)."""
     marks = []
     probe.node.create_subscription(KeyValue, f'{ns}/held_inputs',
                                    lambda m: marks.append(int(m.value.split()[0])), DATA_QOS)
     probe.listen(f'{ns}/mv')
     op_pub = probe.publisher(f'{ns}/op')
-    proc = start_node('valve', dict(VALVE, input_wait=wait), ns, str(tmp_path),
+    proc = start_node('valve', dict(VALVE, **params), ns, str(log_dir),
                       extra=['-p', 'use_sim_time:=true'])
-    k0 = 1000
     try:
         wait_for(lambda: op_pub.get_subscription_count() >= 1
                  and probe.node.count_publishers(f'{ns}/mv') >= 1,
                  timeout=30.0, what='the valve to match the test')
-        time.sleep(0.5)
+    except AssertionError:
+        stop(proc)
+        raise
+    time.sleep(0.5)
+    return proc, marks
+
+
+@pytest.mark.parametrize('wait', [0.5, 0.0])
+def test_a_late_input_is_waited_for_on_sim_time(probe, tmp_path, wait):
+    ns = f'/inwait{int(wait * 10)}'
+    proc, marks = sim_time_valve(probe, ns, tmp_path, input_wait=wait)
+    k0 = 1000
+    try:
         ops = 50.0 + 10.0 * np.sin(2 * np.pi * np.arange(30) / 15)
         acted_after = []
         for i, op in enumerate(ops):
@@ -92,18 +102,9 @@ def test_an_input_that_comes_before_the_clock_catches_up_is_not_held(probe, tmp_
     OP although nothing was lost.  Here every OP is sent before its clock ticks.
     """
     ns = '/clock_behind'
-    marks = []
-    probe.node.create_subscription(KeyValue, f'{ns}/held_inputs',
-                                   lambda m: marks.append(int(m.value.split()[0])), DATA_QOS)
-    probe.listen(f'{ns}/mv')
-    op_pub = probe.publisher(f'{ns}/op')
-    proc = start_node('valve', VALVE, ns, str(tmp_path), extra=['-p', 'use_sim_time:=true'])
+    proc, marks = sim_time_valve(probe, ns, tmp_path)
     k0 = 500
     try:
-        wait_for(lambda: op_pub.get_subscription_count() >= 1
-                 and probe.node.count_publishers(f'{ns}/mv') >= 1,
-                 timeout=30.0, what='the valve to match the test')
-        time.sleep(0.5)
         ops = 50.0 + 10.0 * np.sin(2 * np.pi * np.arange(20) / 10)
         for i, op in enumerate(ops):
             k = k0 + i
