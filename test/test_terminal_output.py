@@ -179,6 +179,11 @@ def test_a_near_perfect_plain_fit_leaves_nothing_to_explain(tmp_path):
     assert 'unexplained' not in res.stdout
     assert 'mismatch: none (confidence 1.00): Nothing is left to explain' in res.stdout
     assert 'Nothing is left to explain' in (tmp_path / 'r.html').read_text()
+    # The frictionless valve's best imitation of a limit cycle (a long dead time) is
+    # printed beside what it loses to, so that its odd figures read as what they are.
+    f, plain = rep['frictionless']['mse_holdout'], rep['baseline']['mse_holdout']
+    assert f > plain
+    assert f'held-out MSE {f:.4g}, worse than the plain friction model ({plain:.4g})' in res.stdout
 
 
 def test_plain_lines_wrap_to_the_width_and_count_only_now_and_then(monkeypatch):
