@@ -116,3 +116,33 @@ def test_a_realtime_node_that_cannot_keep_up_returns_to_the_normal_scheduler(tmp
         assert stop(valve) == 0
     text = log.read_text(errors='replace')
     assert 'cannot keep 10000 Hz' in text
+
+
+@pytest.mark.ros
+@needs_fifo
+def test_the_launcher_runs_above_its_realtime_nodes_and_ends_the_run(tmp_path):
+    loop = subprocess.Popen(
+        [sys.executable, '-m', 'stiction_ros.cli.loop', 'concentration_loop.yaml', '--case',
+         'undershoot', '--set', 'sample_time=0.05', '--duration', '6', '--namespace',
+         '/rt_launch', '--realtime-priority', '5', '--logs', str(tmp_path)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    seen = {}
+    children = Path(f'/proc/{loop.pid}/task/{loop.pid}/children')
+
+    def nodes_seen():
+        try:
+            seen['launcher'] = os.sched_getparam(loop.pid).sched_priority
+            for pid in children.read_text().split():
+                seen[int(pid)] = os.sched_getparam(int(pid)).sched_priority
+        except (FileNotFoundError, ProcessLookupError):
+            pass
+        return len(seen) >= 4 and all(v == 5 for k, v in seen.items() if k != 'launcher')
+
+    try:
+        wait_for(nodes_seen, timeout=60.0, what=f'three nodes under SCHED_FIFO 5, saw {seen}')
+        assert seen['launcher'] == 6
+        out, _ = loop.communicate(timeout=120)
+    finally:
+        if loop.poll() is None:
+            loop.kill()
+    assert loop.returncode == 0, out
