@@ -27,7 +27,7 @@ import numpy as np
 
 from stiction_ros._jit import njit
 from stiction_ros.kernels.arrays import Floats, Ints
-from stiction_ros.kernels.sse import input_known, insert_best, RESTARTS
+from stiction_ros.kernels.sse import input_known, insert_best, prune, RESTARTS
 
 (A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
  STRIBECK, CREEP) = range(12)
@@ -164,15 +164,9 @@ def _restart_state(c: int, u0: float, k: float, y0: float) -> Floats:
     return st
 
 
-@njit(cache=True, inline='always')
-def _merged(a: Floats, b: Floats) -> bool:
-    # Two states that will never differ again (the stick point, rest start and rest
-    # position count only while at rest).
-    resting = a[ST_RESTING] > 0.5 or b[ST_RESTING] > 0.5
-    for i in range(STATE_SIZE):
-        if a[i] != b[i] and (resting or not (i == ST_US or i == ST_SINCE or i == ST_YREST)):
-            return False
-    return True
+# The stick point, rest start and rest position count only while at rest.
+_REST_ONLY = np.zeros(STATE_SIZE, dtype=np.bool_)
+_REST_ONLY[[ST_US, ST_SINCE, ST_YREST]] = True
 
 
 @njit(cache=True)
@@ -186,21 +180,13 @@ def _restart(u: Floats, y: Floats, i0: int, i1: int, y0: float, S: float, J: flo
     alive = np.ones(RESTARTS, dtype=np.bool_)
     for c in range(RESTARTS):
         cand[c] = _restart_state(c, u[i0], float(i0), y0 if c == 0 else y[i0])
-    left, best, k = RESTARTS, 0, i0
-    while k < i1 and left > 1:
+    best, k = 0, i0
+    while k < i1 and alive.sum() > 1:
         for c in range(RESTARTS):
             if alive[c]:
                 sse[c] = _segment(u, y, k, k + 1, S, J, p, cand[c], sse[c], np.inf, none, none)
-        for c in range(RESTARTS):
-            for c2 in range(c + 1, RESTARTS):
-                if alive[c] and alive[c2] and _merged(cand[c], cand[c2]):
-                    alive[c2 if sse[c] <= sse[c2] else c] = False
-                    left -= 1
+        best = prune(cand, sse, alive, ST_RESTING, _REST_ONLY)
         k += 1
-        best = -1
-        for c in range(RESTARTS):
-            if alive[c] and (best < 0 or sse[c] < sse[best]):
-                best = c
         if sse[best] > bound:
             break
     return sse[best], k, best, cand[best].copy()

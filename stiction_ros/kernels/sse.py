@@ -183,13 +183,38 @@ def advance(kernel_id: int, st: Floats, uk: float, S: float, J: float, f: float,
     return pos
 
 
-@njit(cache=True, inline='always')
-def _merged(a: Floats, b: Floats) -> bool:
-    # Two states that will never differ again (a stick point counts only while stuck).
-    for i in range(STATE):
-        if a[i] != b[i] and not (i == 3 and a[4] < 0.5 and b[4] < 0.5):
-            return False
-    return True
+# Of a state, the stick point (entry 3) counts only while stuck (entry 4).
+_REST_ONLY = np.array([False, False, False, True, False, False, False])
+
+
+@njit(cache=True)
+def prune(cand: Floats, sse: Floats, alive: np.ndarray, rest: int, rest_only: np.ndarray) -> int:
+    """
+    Drop the worse of every two live restarts that merged; return the best one still alive.
+
+    Two states merge when they will never differ again: equal in every entry but
+    the ``rest_only`` ones (a stick point and the like), which count only while
+    either state is at rest (entry ``rest`` > 0.5).  Shared by every model's
+    restart (``kano_effects`` too), each with its own state layout.
+    """
+    n = cand.shape[0]
+    for c in range(n):
+        for c2 in range(c + 1, n):
+            if not (alive[c] and alive[c2]):
+                continue
+            at_rest = cand[c, rest] > 0.5 or cand[c2, rest] > 0.5
+            same = True
+            for i in range(cand.shape[1]):
+                if cand[c, i] != cand[c2, i] and (at_rest or not rest_only[i]):
+                    same = False
+                    break
+            if same:
+                alive[c2 if sse[c] <= sse[c2] else c] = False
+    best = -1
+    for c in range(n):
+        if alive[c] and (best < 0 or sse[c] < sse[best]):
+            best = c
+    return best
 
 
 @njit(cache=True)
@@ -209,22 +234,14 @@ def restart(kernel_id: int, u: Floats, y: Floats, i0: int, i1: int, S: float, J:
     alive = np.ones(RESTARTS, dtype=np.bool_)
     for c in range(RESTARTS):
         restart_state(kernel_id, c, u[i0], restart_position(y, i0, i1, c), cand[c])
-    left, best, k = RESTARTS, 0, i0
-    while k < i1 and left > 1:
+    best, k = 0, i0
+    while k < i1 and alive.sum() > 1:
         for c in range(RESTARTS):
             if alive[c]:
                 e = advance(kernel_id, cand[c], u[k], S, J, f, fd) - y[k]
                 sse[c] += e * e
-        for c in range(RESTARTS):
-            for c2 in range(c + 1, RESTARTS):
-                if alive[c] and alive[c2] and _merged(cand[c], cand[c2]):
-                    alive[c2 if sse[c] <= sse[c2] else c] = False
-                    left -= 1
+        best = prune(cand, sse, alive, 4, _REST_ONLY)
         k += 1
-        best = -1
-        for c in range(RESTARTS):
-            if alive[c] and (best < 0 or sse[c] < sse[best]):
-                best = c
         if sse[best] > bound:
             break
     # Element by element: the slice assignment st[:] = cand[best] alone took 3.4 s to compile.
