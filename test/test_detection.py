@@ -83,6 +83,23 @@ def test_a_linear_valve_is_rarely_found_stuck():
     assert np.median(shares) < 0.2 < np.median(sticky)
 
 
+def test_a_stuck_valve_leaves_a_straight_op_ramp_on_a_held_error():
+    # Integral action on the constant error of a stuck valve ramps OP in a
+    # straight line; a linear valve's stretches of still PV (the loop holding
+    # PV against its loads) have a wandering OP and an error nearer zero.
+    seeds = range(200, 206)
+    sticky = [stuck_periods(r['op'], r['pv'], r['sp'])
+              for r in (_flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.0}, s) for s in seeds)]
+    linear = [stuck_periods(r['op'], r['pv'], r['sp'])
+              for r in (_flow_loop({'model': 'linear'}, s) for s in seeds)]
+    linear = [st for st in linear if st.stuck]
+    assert all(st.stuck for st in sticky) and linear
+    assert min(st.ramp_r2 for st in sticky) > 0.9 > max(st.ramp_r2 for st in linear)
+    assert min(st.log_offset for st in sticky) > max(st.log_offset for st in linear)
+    empty = stuck_periods(np.zeros(300), np.zeros(300), None)
+    assert not empty.stuck and np.isnan(empty.ramp_r2) and np.isnan(empty.log_offset)
+
+
 def _tiny_model(tmp_path, seed=0):
     pytest.importorskip('sklearn')
     from stiction_ros.analysis.detection.train import train

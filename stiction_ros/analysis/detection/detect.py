@@ -72,6 +72,11 @@ def evidence_lines(ev: dict, ts: float) -> list:
     for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:
         out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled {travel:.3g} while the '
                    f'valve proxy stayed within its noise')
+    if st.stuck:
+        # What tells a stuck valve from a loop holding PV against a drifting
+        # load: integral action on a constant error ramps OP in a straight line.
+        out.append(f'in its stuck periods OP ramped in a line (R^2 {st.ramp_r2:.2f}) on an '
+                   f'error held {10.0 ** st.log_offset - 1.0:.3g} standard errors off zero')
     for k, z in sorted(st.slips, key=lambda s: -s[1])[:3]:
         out.append(f'slip at {_t(k, ts)}: the valve proxy jumped {z:.1f} noise widths '
                    f'(no set-point step before it)')

@@ -41,6 +41,14 @@ class StuckResult:
     stuck_op_share: float = 0.0    # share of OP's total travel made while stuck
     slips_after_stuck: float = 0.0  # share of slips that end a stuck period
     jump_rate: float = 0.0         # slips per 100 samples
+    # Travel-weighted over the stuck periods (NaN without one): how straight
+    # OP's path is (R^2 of a line) and how far the error's mean sits from zero
+    # in standard errors, log10(1 + z).  A stuck valve leaves a constant error
+    # that integral action turns into a straight ramp; a healthy loop that
+    # holds PV against a wandering load has an error centred on zero and an
+    # OP that wanders with the load.
+    ramp_r2: float = float('nan')
+    log_offset: float = float('nan')
 
     def to_json(self, sample_time: float) -> dict:
         """Return the evidence in seconds, for the report."""
@@ -50,7 +58,12 @@ class StuckResult:
                             for k, z in self.slips[:20]],
                 'stuck_fraction': round(self.stuck_fraction, 4),
                 'stuck_op_share': round(self.stuck_op_share, 4),
-                'slips_after_stuck': round(self.slips_after_stuck, 4)}
+                'slips_after_stuck': round(self.slips_after_stuck, 4),
+                'ramp_r2': _rounded(self.ramp_r2), 'log_offset': _rounded(self.log_offset)}
+
+
+def _rounded(v: float) -> float | None:
+    return round(float(v), 4) if np.isfinite(v) else None
 
 
 def smooth(x: np.ndarray, w: int = SMOOTH) -> np.ndarray:
@@ -177,8 +190,30 @@ def stuck_periods(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
             k = top + 2 * h
         else:
             k += 1
+    res.ramp_r2, res.log_offset = _ramp_and_offset(res.stuck, op, pv, sp)
     res.stuck_fraction = float(np.mean(in_stuck))
     res.stuck_op_share = min(1.0, stuck_travel / travel_total)
     res.slips_after_stuck = ends / len(res.slips) if res.slips else 0.0
     res.jump_rate = 100.0 * len(res.slips) / n
     return res
+
+
+def _ramp_and_offset(stuck: list, op: np.ndarray, pv: np.ndarray,
+                     sp: np.ndarray | None) -> tuple[float, float]:
+    """Return the travel-weighted ramp R^2 of OP and log10(1 + z) of the error's offset."""
+    if not stuck:
+        return float('nan'), float('nan')
+    sigma = robust_noise(pv) or 1e-12
+    error = (np.full(len(pv), float(np.mean(pv))) if sp is None
+             else np.asarray(sp, dtype=np.float64)) - pv
+    r2, z, w = [], [], []
+    for a, b, travel in stuck:
+        seg = op[a:b]
+        t = np.arange(b - a) - (b - a - 1) / 2.0
+        slope = float(t @ (seg - seg.mean())) / float(t @ t)
+        var = float(np.var(seg))
+        r2.append(1.0 - float(np.var(seg - seg.mean() - slope * t)) / var if var > 0 else 0.0)
+        z.append(abs(float(np.mean(error[a:b]))) / (sigma / np.sqrt(b - a)))
+        w.append(travel)
+    weights = np.asarray(w) / float(np.sum(w))
+    return float(weights @ np.asarray(r2)), float(np.log10(1.0 + weights @ np.asarray(z)))
