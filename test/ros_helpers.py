@@ -123,11 +123,16 @@ class Probe:
         sent in between is lost to that node alone: a valve started with the test missed
         2.5 s of OP under load, and a restarted one 1 run in 18. ``value`` must be what the
         node acts on already, so that resending it changes nothing. A node has heard one
-        once it marks a later sample as acted on a held input (``held_inputs``).
+        once it marks a later sample as acted on a held input (``held_inputs``), with a value:
+        before the first one it marks the samples it acted on with ``nan``.
         """
         heard = set()
+
+        def on_mark(msg, ns):
+            if msg.value.split()[-1] != 'nan':
+                heard.add(ns)
         subs = [self.node.create_subscription(KeyValue, f'{ns}/held_inputs',
-                                              lambda _, ns=ns: heard.add(ns), DATA_QOS)
+                                              lambda m, ns=ns: on_mark(m, ns), DATA_QOS)
                 for ns in namespaces]
         try:
             wait_for(lambda: self.publish(topic, value) or time.sleep(0.3) or

@@ -33,10 +33,10 @@ Degraded inputs: a sample at which the node acts without a value of an
 input sent in that sample (the message was lost, late, or its producer is
 down) acts on the held value; the node says so on ``/diagnostics`` and
 publishes ``held_inputs`` (``diagnostic_msgs/KeyValue``: the input topic,
-then the sample number and the value acted on), which the recorder records
-and the analyzer uses to put the valve's real input in place, or leave the
-sample out.  With ``state_file`` the node saves its state after every
-sample and resumes from it when restarted (``state_file.py``).
+then the sample number and the value acted on, ``nan`` if none had come
+yet), which the recorder records and the analyzer uses to put the valve's
+real input in place, or leave the sample out.  With ``state_file`` the node
+saves its state after every sample and resumes from it when restarted.
 """
 
 from collections import deque
@@ -56,9 +56,10 @@ from std_msgs.msg import Float64
 from stiction_ros.errors import StartupError
 from stiction_ros.nodes import state_file
 from stiction_ros.nodes.input_guard import InputGuard
-from stiction_ros.nodes.params import check_choices, check_fixed, coerce, declare, Param
+from stiction_ros.nodes.params import check_choices, check_fixed, coerce, declare
 from stiction_ros.nodes.params import fixed_reason, plain
 from stiction_ros.nodes.realtime import align_timer, CpuWatch, set_fifo
+from stiction_ros.nodes.sampled_params import common_params
 
 SLOTS = 4
 # Reliable with room for a few seconds of backlog: a slow subscriber (the
@@ -74,39 +75,7 @@ class SampledNode(Node):
 
     def __init__(self, name, phase, params):
         super().__init__(name)
-        common = [
-            Param('sample_time', 1.0, 'Sample time of the loop, s. Fixed for the run.',
-                  1e-4, 1e4, fixed=True),
-            Param('phase', float(phase),
-                  'When in each sample this node acts, as a fraction of sample_time '
-                  '(plant 0.25, controller 0.5, valve 0.75). Fixed for the run.',
-                  0.0, 0.75, fixed=True, step=0.25),
-            Param('realtime_priority', 0,
-                  'On wall time, run this process under SCHED_FIFO at this priority (Linux, '
-                  'needs CAP_SYS_NICE; without it the node warns and keeps the normal '
-                  'scheduler). 0: the normal scheduler. Fixed for the run.',
-                  0, 98, fixed=True),
-            Param('input_limit', 1e6, 'Input values beyond +-this (or not finite) are '
-                  'rejected and the last good value held.', 1.0, 1e300),
-            Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
-                  'reports it stale (ERROR).', 1e-3, 1e6),
-            Param('inject_drop', 0.0, 'Fault injection: probability that an input message is '
-                  'lost on its way in.', 0.0, 1.0),
-            Param('inject_delay', 0.0, 'Fault injection: delay of every input message, s.',
-                  0.0, 60.0),
-            Param('inject_jitter', 0.0, 'Fault injection: random extra delay of an input '
-                  'message, uniform up to this, s (messages stay in order).', 0.0, 60.0),
-            Param('inject_seed', 0, 'Seed of the injected faults. Fixed for the run.', 0,
-                  2**31 - 1, fixed=True),
-            Param('input_wait', 0.5, 'On sim time: wall seconds to wait at the action instant '
-                  'for an input of this sample that has not come yet (0: act on what is '
-                  "there). Keep it under the sim clock's sync_timeout. Fixed for the run.",
-                  0.0, 60.0, fixed=True),
-            Param('state_file', '', 'File the node writes its state to after every sample and '
-                  'resumes from when restarted ("": none). Fixed for the run.', fixed=True,
-                  constraint='a writable file path, or empty'),
-        ]
-        self.param_specs = common + list(params)
+        self.param_specs = common_params(phase) + list(params)
         self.values = declare(self, self.param_specs)
         self.sample_time = self.values['sample_time']
         self._sim = bool(self.get_parameter('use_sim_time').value)
@@ -254,15 +223,21 @@ class SampledNode(Node):
         self._late.append(self.get_clock().now().nanoseconds - due)
         self._owed = {topic for topic, guard in self.input_guards.items() if not guard.fresh}
         for topic, guard in self.input_guards.items():
+            # The sample and the value acted on: an analyzer can put it in place of the
+            # recorded one, at the right sample however late this message is.  'nan': no
+            # value had come yet (the first ones lost), so none can be put in place.
             if guard.acted(k):
                 self._owed.add(topic)
-                # The sample and the value acted on: an analyzer can put it in place of
-                # the recorded one, at the right sample however late this message is.
-                self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
-                                                value=f'{k} {guard.last_good[1]!r}'))
+                value = repr(guard.last_good[1])
                 self.get_logger().warning(
                     f'acted on a held {topic} ({guard.held} samples so far): a message was '
                     'lost or late', throttle_duration_sec=5.0)
+            elif guard.last_good is None and guard.lag == 0:
+                value = 'nan'
+            else:
+                continue
+            self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
+                                            value=f'{k} {value}'))
         if self._store is not None:
             self._save(k)
 

@@ -119,6 +119,11 @@ def read_bag_record(path, namespace=None, held=True):
             signals['op'] = np.where(fixed, used, signals['op'])
             notes.append(f'op: {int(fixed.sum())} samples hold the OP the valve acted on, not '
                          'the one the controller sent (lost or late on the way)')
+        none = np.isinf(used)
+        if none.any():
+            notes.append(f'op: at {int(none.sum())} samples the valve had no OP yet (the first '
+                         'ones were lost or late) and held its position; left out of the '
+                         'valve fit')
         reasons[HELD] = mask
         if note:
             notes.append(note)
@@ -133,7 +138,7 @@ def read_bag_record(path, namespace=None, held=True):
                       start_time=start, name=prefix or Path(path).name,
                       time_origin=float(origin))
     if HELD in reasons and 'mv' in signals:
-        record.valve_ok = (reasons[HELD] & np.isfinite(signals['op'])
+        record.valve_ok = (reasons[HELD] & ~none & np.isfinite(signals['op'])
                            & np.isfinite(signals['mv']))
     return record
 
@@ -142,8 +147,9 @@ def _held_marks(topic, ref, ts, center, k0, n):
     """
     Read a ``held_inputs`` topic: each mark is ``sample value`` for one input.
 
-    Returns the samples to exclude (a held MV or PV), the OP the valve acted
-    on where it held OP (NaN elsewhere), and a note if marks cannot be read.
+    Returns the samples to exclude (a held MV or PV, or no OP at all), the OP
+    the valve acted on where it held OP (inf where it had none yet, NaN
+    elsewhere), and a note if marks cannot be read.
     """
     mask = np.zeros(n, dtype=bool)
     used = np.full(n, np.nan)
@@ -164,6 +170,8 @@ def _held_marks(topic, ref, ts, center, k0, n):
             used[i] = value
         else:
             mask[i] = True
+            if name == 'op':
+                used[i] = math.inf      # the valve acted on no OP at all
     return mask, used, None
 
 
