@@ -24,7 +24,7 @@ FEATURE_NAMES = (
     'stuck_ramp_r2', 'stuck_log_offset',
     'pv_jump_kurtosis', 'pv_log_max_jump',
     'pv_noise_share', 'op_noise_share', 'error_lag1', 'error_bias', 'op_ramp_share',
-    'op_saturated', 'sp_steps_per_100', 'pi_r2',
+    'op_saturated', 'sp_steps_per_100',
     'ham_variance_ratio', 'ham_log_lr', 'ham_S_rel', 'ham_J_over_S', 'ham_reliable',
 )
 # A coarser Hammerstein search than the one that sizes the band in the
@@ -68,15 +68,6 @@ def _ramp_share(op: np.ndarray, sigma: float, w: int = 30) -> float:
         if travel > 6.0 * max(sigma, 1e-12) and resid.std() < 0.25 * travel:
             hits += 1
     return hits / n
-
-
-def _pi_r2(op: np.ndarray, error: np.ndarray) -> float:
-    """Return how much of OP's increments a PI law on the error explains (velocity form)."""
-    d_op = np.diff(op)
-    a = np.column_stack([np.diff(error), error[1:], np.ones(len(d_op))])
-    coef, *_ = np.linalg.lstsq(a, d_op, rcond=None)
-    var = float(np.var(d_op))
-    return max(0.0, 1.0 - float(np.var(d_op - a @ coef)) / var) if var > 0 else NAN
 
 
 def _jump_stats(pv: np.ndarray, integrating: bool) -> tuple[float, float]:
@@ -158,7 +149,6 @@ def extract(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: 
         'op_ramp_share': _ramp_share(op, robust_noise(op)),
         'op_saturated': float(np.mean((op <= 0.5) | (op >= 99.5))),
         'sp_steps_per_100': 100.0 * len(set_point_steps(sp_arr, pv_sig)) / n,
-        'pi_r2': _pi_r2(op, error),
         **hammerstein_features(op, pv, sample_time, integrating),
     }
     vec = np.array([f[k] for k in FEATURE_NAMES], dtype=np.float64)
