@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from ros_helpers import wait_for
 from stiction_ros.analysis.readers import load_record
-from stiction_ros.analysis.readers.bag_signals import HELD, read_bag_record
+from stiction_ros.analysis.readers.bag_signals import HELD, NO_OP, read_bag_record
 from stiction_ros.bag.reader import read_bag
 from stiction_ros.models import create
 
@@ -164,6 +164,6 @@ def test_samples_before_the_valve_had_any_op_are_left_out_of_the_valve_fit(tmp_p
 
     record = load_record(bag)
     assert record.valve_segments() == [(none, n)]
-    assert any(f'at {none} samples the valve had no OP yet' in note for note in record.notes)
+    assert [e['samples'] for e in record.excluded if e['reason'] == NO_OP] == [none]
     assert record.signals['op'][held] == used[held] and record.signals['op'][0] == op[0]
     assert settled_mse(record, settle=0) == 0.0

@@ -36,6 +36,8 @@ KEY_VALUE = 'diagnostic_msgs/msg/KeyValue'
 HELD = ('a loop node acted on a held input (a message lost or late, or its sender down): '
         'the plant on an old MV or the controller on an old PV (the valve fits keep these '
         'samples: their OP and MV are right)')
+NO_OP = ('the valve acted before any OP reached it (the first ones lost or late) and held '
+         'its position: the OP recorded there is not what it used')
 # Stamps after this (2001-09-09) are taken as wall-clock time; earlier is sim time.
 EPOCH_LIKE = 1e9
 MAX_SAMPLES = 50_000_000
@@ -120,11 +122,9 @@ def read_bag_record(path, namespace=None, held=True):
             notes.append(f'op: {int(fixed.sum())} samples hold the OP the valve acted on, not '
                          'the one the controller sent (lost or late on the way)')
         none = np.isinf(used)
+        reasons[HELD] = mask & ~none
         if none.any():
-            notes.append(f'op: at {int(none.sum())} samples the valve had no OP yet (the first '
-                         'ones were lost or late) and held its position; left out of the '
-                         'valve fit')
-        reasons[HELD] = mask
+            reasons[NO_OP] = none
         if note:
             notes.append(note)
     origin = ref / 1e9 + center + (k0 - 0.5) * ts
@@ -138,7 +138,7 @@ def read_bag_record(path, namespace=None, held=True):
                       start_time=start, name=prefix or Path(path).name,
                       time_origin=float(origin))
     if HELD in reasons and 'mv' in signals:
-        record.valve_ok = (reasons[HELD] & ~none & np.isfinite(signals['op'])
+        record.valve_ok = (reasons[HELD] & np.isfinite(signals['op'])
                            & np.isfinite(signals['mv']))
     return record
 
