@@ -122,7 +122,7 @@ def read_bag_record(path, namespace=None, held=True):
             notes.append(f'op: {int(fixed.sum())} samples hold the OP the valve acted on, not '
                          'the one the controller sent (lost or late on the way)')
         none = np.isinf(used)
-        reasons[HELD] = mask & ~none
+        reasons[HELD] = mask
         if none.any():
             reasons[NO_OP] = none
         if note:
@@ -147,9 +147,9 @@ def _held_marks(topic, ref, ts, center, k0, n):
     """
     Read a ``held_inputs`` topic: each mark is ``sample value`` for one input.
 
-    Returns the samples to exclude (a held MV or PV, or no OP at all), the OP
-    the valve acted on where it held OP (inf where it had none yet, NaN
-    elsewhere), and a note if marks cannot be read.
+    Returns the samples to exclude (a held MV or PV), the OP the valve acted
+    on where it held OP (inf where it had none yet, NaN elsewhere), and a
+    note if marks cannot be read.
     """
     mask = np.zeros(n, dtype=bool)
     used = np.full(n, np.nan)
@@ -166,12 +166,11 @@ def _held_marks(topic, ref, ts, center, k0, n):
     for name, i, value in zip(names, k, values):
         if not 0 <= i < n:
             continue
-        if name == 'op' and math.isfinite(value):
-            used[i] = value
+        if name == 'op':
+            # inf: the valve acted on no OP at all (none had come yet)
+            used[i] = value if math.isfinite(value) else math.inf
         else:
             mask[i] = True
-            if name == 'op':
-                used[i] = math.inf      # the valve acted on no OP at all
     return mask, used, None
 
 
