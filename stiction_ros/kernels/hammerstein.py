@@ -42,6 +42,23 @@ def _reduction(h: Floats, g: Floats) -> float:
     return np.sum(z * z)
 
 
+@njit(cache=True, aot='f8[:](f8[::1], f8)')
+def first_order_lag(u: Floats, a: float) -> Floats:
+    """
+    Return ``y[k] = (1 - a) u[k] + a y[k - 1]`` from rest: a unit-gain first-order lag.
+
+    The same sums in the same order as ``scipy.signal.lfilter([1 - a], [1, -a], u)``,
+    without importing scipy into the default analysis.
+    """
+    y = np.empty(u.shape[0])
+    b = 1.0 - a
+    prev = 0.0
+    for k in range(u.shape[0]):
+        prev = b * u[k] + a * prev
+        y[k] = prev
+    return y
+
+
 @njit(cache=True, aot='f8[:](f8[::1], f8, f8, i8, f8)')
 def segment_path(u: Floats, S: float, J: float, direction: int, fraction: float) -> Floats:
     """

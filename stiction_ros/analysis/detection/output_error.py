@@ -16,9 +16,8 @@ Kano's valve runs over a grid of S relative to OP's range and J / S.
 """
 
 import numpy as np
-from scipy.signal import lfilter
 
-from stiction_ros.kernels.hammerstein import segment_path
+from stiction_ros.kernels.hammerstein import first_order_lag, segment_path
 
 # Lag time constants and dead times, in samples: from a fast flow loop to a
 # slow temperature loop at the sampling of our records.
@@ -31,12 +30,9 @@ SAMPLES_PER_DRIFT_TERM = 150
 
 
 def _lags(u: np.ndarray) -> np.ndarray:
-    u = u - u.mean()
-    cols = []
-    for tau in LAG_TAUS:
-        a = float(np.exp(-1.0 / tau))
-        cols.append(lfilter([1.0 - a], [1.0, -a], u))
-    return np.column_stack(cols)
+    u = np.ascontiguousarray(u - u.mean())
+    return np.column_stack([first_order_lag(u, float(np.exp(-1.0 / tau)))
+                            for tau in LAG_TAUS])
 
 
 class _Fit:
