@@ -4,6 +4,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from stiction_ros.analysis.detection.output_error import output_error_figures
+from stiction_ros.kernels.hammerstein import first_order_lag
 from stiction_ros.models.kano import Kano
 
 
@@ -19,8 +20,7 @@ def _open_loop(sticky: bool, integrating: bool, seed: int = 0, n: int = 1200):
     else:
         a = np.exp(-1 / 6.0)
         pv = lfilter([1 - a], [1, -a], mv - mv.mean())
-        # Each 4 % slip moves PV by 4 units: noise a third of a slip, so
-        # one-step predictions cannot tell the valves apart.
+        # Each 4 % slip moves PV by 4 units; the noise is a third of that.
         noise = 1.3
     return op, pv + rng.normal(0, noise, n)
 
@@ -55,3 +55,12 @@ def test_too_short_or_dead_records_give_nan_not_a_number_that_means_something():
     assert np.isnan(ratio) and np.isnan(s_rel)
     ratio, _ = output_error_figures(50 + np.sin(np.arange(400.0)), np.zeros(400), False)
     assert np.isnan(ratio)
+
+
+def test_the_compiled_lag_is_scipys_first_order_filter_to_the_bit():
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 997):
+        u = np.ascontiguousarray(3.0 + 7.0 * rng.standard_normal(n))
+        for tau in (0.7, 5.0, 80.0):
+            a = float(np.exp(-1.0 / tau))
+            assert np.array_equal(first_order_lag(u, a), lfilter([1 - a], [1, -a], u))
