@@ -17,6 +17,7 @@ from pathlib import Path
 import re
 import time
 
+from stiction_ros._threads import one_blas_thread
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
 from stiction_ros.app.progress import Step
@@ -125,7 +126,8 @@ def _results(paths, options, jobs, scheduler, out_dir, root):
             for future in dask_completed(futures):
                 yield future.result()
     elif jobs > 1 and len(paths) > 1:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(paths))) as pool:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(paths)),
+                                 initializer=one_blas_thread) as pool:
             futures = [pool.submit(analyze_one, p, options, out_dir, root) for p in paths]
             for future in as_completed(futures):
                 yield future.result()

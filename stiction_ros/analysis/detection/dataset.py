@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
 from stiction_ros.analysis.verdict import from_signatures
@@ -131,7 +132,7 @@ def _compute(seeds: list, jobs: int, progress: bool) -> dict:
     out = []
     t0 = time.perf_counter()
     if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
+        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
             for i, r in enumerate(pool.map(featurize_seed, seeds, chunksize=50), 1):
                 out.append(r)
                 _tick(progress, i, len(seeds), t0)
