@@ -1,0 +1,113 @@
+"""
+How much better a sticky valve predicts PV than a linear one, with loads that wander.
+
+The output-error fit (``output_error``) leaves loads in its residual apart
+from slow cosines, but simulated and plant loads are random walks and steps:
+on simulated calibration records whose stiction shows at 1-2 noise widths in
+PV, 39 % were missed.  Here the disturbance is an integrated noise,
+``H(q) = (1 - c q^-1) / (1 - q^-1)``, so the valve path is judged by
+one-step prediction errors of PV's filtered increments, where a random-walk
+load is white and a slip stands out.  ``c`` runs over a short grid (0: a
+pure random walk; 0.95: close to white measurement noise) and the smallest
+prediction error wins, for the linear and for each sticky valve alike.
+
+The plant is the output-error fit's basis of first-order lags, behind a dead
+time of at least one sample: the controller computes OP[k] from PV[k], so a
+fit allowed to use OP[k] for PV[k] learns the controller, not the plant.
+
+Alone, ``pe_ratio`` separates the simulated training records with an AUC of
+0.82 (``oe_ratio``: 0.55); a sticky valve may also predict worse than OP
+itself (ratio above 1), when its slips in the grid fall a sample off.  Both
+parts count: on 352 calibration records the AUC is 0.86 as built, 0.52 with
+a dead time of zero allowed, 0.58 with ``c`` held at 0.95 and 0.77 with ``c``
+held at 0.  In open loop with white noise the output-error fit is the
+sharper of the two; in closed loop it is this one (``test_prediction_error``).
+"""
+
+import numpy as np
+
+from stiction_ros.analysis.detection.output_error import J_OVER_S, LAG_TAUS, S_RELATIVE
+from stiction_ros.kernels.hammerstein import first_order_lag, segment_path
+
+NOISE_C = (0.0, 0.5, 0.8, 0.95)
+PE_DELAYS = (1, 2, 3, 5, 8, 12)
+# Rows the longest dead time leaves without a regressor are dropped from every fit.
+SKIP = max(PE_DELAYS) + 1
+
+
+def _noise_filter(x: np.ndarray, c: float) -> np.ndarray:
+    """Return ``(1 - q^-1) / (1 - c q^-1) x``, the inverse of the disturbance model."""
+    d = np.ascontiguousarray(np.diff(x, prepend=x[0]))
+    if c == 0.0:
+        return d
+    return first_order_lag(d, c) / (1.0 - c)
+
+
+def _lags(u: np.ndarray) -> np.ndarray:
+    u = np.ascontiguousarray(u)
+    return np.column_stack([first_order_lag(u, float(np.exp(-1.0 / t))) for t in LAG_TAUS])
+
+
+class _Predictor:
+    """PV's filtered increments per noise model, and the best fit of a valve path."""
+
+    def __init__(self, y: np.ndarray):
+        self.ys = {c: _noise_filter(y, c)[SKIP:] for c in NOISE_C}
+        self.n = len(y)
+
+    def rss(self, path: np.ndarray) -> tuple[float, float]:
+        """Return the least residual sum of squares and its ``c``, over ``c`` and dead time."""
+        best, best_c = np.inf, float('nan')
+        path = path - path.mean()
+        rows = self.n - SKIP
+        for c in NOISE_C:
+            lag = _lags(_noise_filter(path, c))
+            yc = self.ys[c]
+            for d in PE_DELAYS:
+                x = np.column_stack([lag[SKIP - d:self.n - d], np.ones(rows)])
+                coef = np.linalg.lstsq(x, yc, rcond=None)[0]
+                r = yc - x @ coef
+                rr = float(r @ r)
+                if rr < best:
+                    best, best_c = rr, c
+        return best, best_c
+
+
+def prediction_error_figures(op: np.ndarray, pv: np.ndarray,
+                             integrating: bool) -> tuple[float, float]:
+    """
+    Return ``(pe_ratio, pe_c)`` of one contiguous record.
+
+    Parameters
+    ----------
+    op, pv : numpy.ndarray
+        Controller output (%) and process value, equally long, finite.
+    integrating : bool
+        Fit PV's increments (a level) rather than PV.
+
+    Returns
+    -------
+    tuple of float
+        ``pe_ratio``: the best sticky valve's prediction error over the linear
+        valve's (below 1 when stiction predicts PV better; NaN for a record
+        shorter than ``4 * SKIP`` or one the linear valve predicts exactly);
+        ``pe_c``: the noise model's ``c`` the linear valve chose.
+
+    """
+    op = np.asarray(op, dtype=np.float64)
+    pv = np.asarray(pv, dtype=np.float64)
+    y, u = (np.diff(pv), op[:-1]) if integrating else (pv - pv.mean(), op)
+    if len(y) < 4 * SKIP:
+        return float('nan'), float('nan')
+    fit = _Predictor(y)
+    linear, c_linear = fit.rss(u)
+    if not linear > 0:
+        return float('nan'), float('nan')
+    span = float(np.ptp(op)) or 1.0
+    u = np.ascontiguousarray(u)
+    best = np.inf
+    for s_rel in S_RELATIVE:
+        for j_over_s in J_OVER_S:
+            s = s_rel * span
+            best = min(best, fit.rss(segment_path(u, s, j_over_s * s, 0, 0.5))[0])
+    return best / linear, c_linear
