@@ -21,6 +21,13 @@ nested.  The parameter vector ``p`` is indexed by the constants below:
   this (% per sample), the velocity-weakening friction of a Stribeck curve;
 - ``CREEP``: at rest the position follows CREEP * (u - u_s): pre-sliding
   deflection, bounded by the stick band and undone on reversal.
+
+The ASYM, POS and DRIFT terms add into one multiplier of the bands,
+``1 + ASYM d + POS (y - POS_REF) / 50 + DRIFT (k - DRIFT_MID) / DRIFT_SPAN``,
+floored at zero; they do not multiply one another.  A restart in the
+direction the valve last moved needs ``J`` times that multiplier (Kano's
+rule), a first move from rest ``(S + J) / 2`` times it; the dwell growth
+adds to each.
 """
 
 import numpy as np
