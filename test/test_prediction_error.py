@@ -34,7 +34,20 @@ def _open_loop_level(sticky: bool, seed: int, n: int = 1200):
     t = np.arange(n)
     op = 50 + 8 * np.sin(2 * np.pi * t / 300) + np.cumsum(rng.normal(0, 0.15, n))
     mv = Kano(S=4.0, J=2.0).simulate(op) if sticky else op.copy()
-    return op, 0.02 * np.cumsum(mv - mv.mean()) + rng.normal(0, 0.01, n)
+    # The level sees this sample's valve position from the next sample on.
+    level = 0.02 * np.concatenate(([0.0], np.cumsum(mv - mv.mean())[:-1]))
+    return op, level + rng.normal(0, 0.01, n)
+
+
+def _open_loop_flow(seed: int, n: int = 1200):
+    """Return OP and PV of a sticky valve before a first-order lag, white noise, no feedback."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n)
+    op = 50 + 8 * np.sin(2 * np.pi * t / 300) + np.cumsum(rng.normal(0, 0.15, n))
+    mv = Kano(S=4.0, J=2.0).simulate(op)
+    a = np.exp(-1 / 6.0)
+    pv = lfilter([0.0, 1 - a], [1, -a], mv - mv.mean())
+    return op, pv + rng.normal(0, 0.3, n)
 
 
 def test_a_sticky_valve_predicts_a_closed_loop_pv_better_where_output_error_cannot_tell():
@@ -58,6 +71,16 @@ def test_an_integrating_level_is_fitted_on_its_increments():
     op, pv = _open_loop_level(sticky=True, seed=2)
     ratio, _ = prediction_error_figures(op, pv, integrating=True)
     assert ratio < 0.97
+    # Read as a self-regulating loop, the same record shows the slips less.
+    assert prediction_error_figures(op, pv, integrating=False)[0] > ratio
+
+
+def test_without_feedback_and_with_white_noise_the_output_error_fit_is_the_sharper():
+    for seed in range(2):
+        op, pv = _open_loop_flow(seed)
+        ratio, _ = prediction_error_figures(op, pv, integrating=False)
+        assert ratio < 1.0
+        assert output_error_figures(op, pv, integrating=False)[0] < ratio
 
 
 def test_op_computed_from_the_same_pv_sample_explains_nothing():

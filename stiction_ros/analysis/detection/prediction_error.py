@@ -14,11 +14,15 @@ prediction error wins, for the linear and for each sticky valve alike.
 The plant is the output-error fit's basis of first-order lags, behind a dead
 time of at least one sample: the controller computes OP[k] from PV[k], so a
 fit allowed to use OP[k] for PV[k] learns the controller, not the plant.
+The rule does not remove all of it: an increment PV[k] - PV[k-1] still holds
+PV[k-1], which OP[k-1] saw, and a level's increments are taken forward
+(PV[k+1] - PV[k] against OP[k]), so a level's own dead time counts one
+sample more.  Neither was tuned; the figures below are of the rule as it stands.
 
 Alone, ``pe_ratio`` separates the simulated training records with an AUC of
 0.82 (``oe_ratio``: 0.55); a sticky valve may also predict worse than OP
 itself (ratio above 1), when its slips in the grid fall a sample off.  Both
-parts count: on 352 calibration records the AUC is 0.86 as built, 0.52 with
+parts count: on every third calibration record (352) the AUC is 0.86 as built, 0.52 with
 a dead time of zero allowed, 0.58 with ``c`` held at 0.95 and 0.77 with ``c``
 held at 0.  In open loop with white noise the output-error fit is the
 sharper of the two; in closed loop it is this one (``test_prediction_error``).
@@ -31,7 +35,8 @@ from stiction_ros.kernels.hammerstein import first_order_lag, segment_path
 
 NOISE_C = (0.0, 0.5, 0.8, 0.95)
 PE_DELAYS = (1, 2, 3, 5, 8, 12)
-# Rows the longest dead time leaves without a regressor are dropped from every fit.
+# The longest dead time's rows have no regressor, and the first increment is
+# the zero that ``prepend`` makes: every fit drops them all.
 SKIP = max(PE_DELAYS) + 1
 
 
@@ -89,8 +94,9 @@ def prediction_error_figures(op: np.ndarray, pv: np.ndarray,
     -------
     tuple of float
         ``pe_ratio``: the best sticky valve's prediction error over the linear
-        valve's (below 1 when stiction predicts PV better; NaN for a record
-        shorter than ``4 * SKIP`` or one the linear valve predicts exactly);
+        valve's (below 1 when stiction predicts PV better; NaN when fewer than
+        ``4 * SKIP`` samples are fitted or the linear valve predicts PV
+        exactly; 1 for a constant OP, which no valve can tell apart);
         ``pe_c``: the noise model's ``c`` the linear valve chose.
 
     """
