@@ -15,6 +15,8 @@ cosines for load drifts; an integrating loop is fitted on PV's increments.
 Kano's valve runs over a grid of S relative to OP's range and J / S.
 """
 
+from typing import Iterator
+
 import numpy as np
 
 from stiction_ros.kernels.hammerstein import first_order_lag, segment_path
@@ -65,6 +67,24 @@ class _Fit:
         return best
 
 
+def target(op: np.ndarray, pv: np.ndarray,
+           integrating: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(y, u)``: PV about its mean and OP, or a level's increments and the OP before."""
+    op = np.asarray(op, dtype=np.float64)
+    pv = np.asarray(pv, dtype=np.float64)
+    y, u = (np.diff(pv), op[:-1]) if integrating else (pv - pv.mean(), op)
+    return y, np.ascontiguousarray(u)
+
+
+def sticky_paths(u: np.ndarray, op: np.ndarray) -> Iterator[tuple[float, np.ndarray]]:
+    """Yield ``(S over OP's range, valve path)`` for every Kano valve of the grid."""
+    span = float(np.ptp(op)) or 1.0
+    for s_rel in S_RELATIVE:
+        for j_over_s in J_OVER_S:
+            s = s_rel * span
+            yield float(s_rel), segment_path(u, s, j_over_s * s, 0, 0.5)
+
+
 def output_error_figures(op: np.ndarray, pv: np.ndarray,
                          integrating: bool) -> tuple[float, float]:
     """
@@ -85,22 +105,16 @@ def output_error_figures(op: np.ndarray, pv: np.ndarray,
         leaves nothing to explain); ``oe_S_rel``: that valve's S over OP's range.
 
     """
-    op = np.asarray(op, dtype=np.float64)
-    pv = np.asarray(pv, dtype=np.float64)
-    y, u = (np.diff(pv), op[:-1]) if integrating else (pv - pv.mean(), op)
+    y, u = target(op, pv, integrating)
     if len(y) < 2 * max(DELAYS):
         return float('nan'), float('nan')
     fit = _Fit(y)
     linear = fit.rss(u)
     if not linear > 0:
         return float('nan'), float('nan')
-    span = float(np.ptp(op)) or 1.0
-    u = np.ascontiguousarray(u)
     best, best_s = np.inf, float('nan')
-    for s_rel in S_RELATIVE:
-        for j_over_s in J_OVER_S:
-            s = s_rel * span
-            r = fit.rss(segment_path(u, s, j_over_s * s, 0, 0.5))
-            if r < best:
-                best, best_s = r, float(s_rel)
+    for s_rel, path in sticky_paths(u, np.asarray(op)):
+        r = fit.rss(path)
+        if r < best:
+            best, best_s = r, s_rel
     return best / linear, best_s

@@ -30,8 +30,8 @@ sharper of the two; in closed loop it is this one (``test_prediction_error``).
 
 import numpy as np
 
-from stiction_ros.analysis.detection.output_error import J_OVER_S, LAG_TAUS, S_RELATIVE
-from stiction_ros.kernels.hammerstein import first_order_lag, segment_path
+from stiction_ros.analysis.detection.output_error import LAG_TAUS, sticky_paths, target
+from stiction_ros.kernels.hammerstein import first_order_lag
 
 NOISE_C = (0.0, 0.5, 0.8, 0.95)
 PE_DELAYS = (1, 2, 3, 5, 8, 12)
@@ -85,10 +85,8 @@ def prediction_error_figures(op: np.ndarray, pv: np.ndarray,
 
     Parameters
     ----------
-    op, pv : numpy.ndarray
-        Controller output (%) and process value, equally long, finite.
-    integrating : bool
-        Fit PV's increments (a level) rather than PV.
+    op, pv, integrating
+        As for :func:`~stiction_ros.analysis.detection.output_error.output_error_figures`.
 
     Returns
     -------
@@ -100,20 +98,12 @@ def prediction_error_figures(op: np.ndarray, pv: np.ndarray,
         ``pe_c``: the noise model's ``c`` the linear valve chose.
 
     """
-    op = np.asarray(op, dtype=np.float64)
-    pv = np.asarray(pv, dtype=np.float64)
-    y, u = (np.diff(pv), op[:-1]) if integrating else (pv - pv.mean(), op)
+    y, u = target(op, pv, integrating)
     if len(y) < 4 * SKIP:
         return float('nan'), float('nan')
     fit = _Predictor(y)
     linear, c_linear = fit.rss(u)
     if not linear > 0:
         return float('nan'), float('nan')
-    span = float(np.ptp(op)) or 1.0
-    u = np.ascontiguousarray(u)
-    best = np.inf
-    for s_rel in S_RELATIVE:
-        for j_over_s in J_OVER_S:
-            s = s_rel * span
-            best = min(best, fit.rss(segment_path(u, s, j_over_s * s, 0, 0.5))[0])
+    best = min(fit.rss(path)[0] for _, path in sticky_paths(u, np.asarray(op)))
     return best / linear, c_linear
