@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy detector test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy detector cnn test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -51,6 +51,13 @@ accuracy: venv
 # 20 min on 2 cores): stiction_ros/resources/stiction_detector.npz.
 detector: venv
 	$(PY) -m stiction_ros.cli.detector
+
+# Retrain the detector's 1-D CNN (stiction_ros/resources/stiction_cnn.npz) on its own
+# simulated corpus, about 25 min on 2 cores; needs PyTorch (CPU), installed here.
+# Then `make detector`: the network's logit is one of the detector's figures.
+cnn: venv
+	$(PY) -m pip install --quiet -r requirements/train.txt
+	$(PY) -m stiction_ros.cli.cnn
 
 test: venv
 	$(PY) -m pytest -q test

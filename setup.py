@@ -62,6 +62,7 @@ setup(
             'stiction-bag = stiction_ros.cli.bag:main',
             'stiction-analyze = stiction_ros.cli.analyze:main',
             'stiction-detector = stiction_ros.cli.detector:main',
+            'stiction-cnn = stiction_ros.cli.cnn:main',
             'stiction-precompile = stiction_ros.cli.precompile:main',
             # Node executables, as `ros2 run stiction_ros <name>` finds them.
             'controller = stiction_ros.nodes.controller_node:main',

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.detection import dataset, FEATURE_NAMES, load_model
+from stiction_ros.analysis.detection import cnn, dataset, FEATURE_NAMES, load_model
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
@@ -122,7 +122,8 @@ def main(argv=None):
         'date': datetime.date.today().isoformat(),
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
                    f'Python {platform.python_version()})',
-        'data': str(args.data), 'model': model.meta, 'stuck_threshold': stuck_th,
+        'data': str(args.data), 'model': model.meta, 'cnn': cnn.load().meta,
+        'stuck_threshold': stuck_th,
         'plant': plant_rows(cases, cv_pred, stuck_th),
         'plant_tags': per_tag(cases, [c['report']['stiction']['detected'] for c in cases]),
         'plant_seconds': [round(c['seconds'], 3) for c in cases],

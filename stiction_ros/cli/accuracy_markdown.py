@@ -24,6 +24,17 @@ def table(rows: dict) -> list:
     return out
 
 
+def _cnn_line(meta: dict | None) -> list:
+    if not meta:
+        return []
+    fig = meta.get('figures', {})
+    seeds = meta.get('corpus_seeds', ['-', '-'])
+    return [f'- The detector\'s 1-D CNN (`make cnn`): {meta.get("records", "-")} simulated '
+            f'records of seeds {seeds[0]}-{seeds[1] - 1 if isinstance(seeds[1], int) else "-"}, '
+            f'{fig.get("epochs", "-")} epochs in {fig.get("train_s", "-")} s (PyTorch '
+            f'{fig.get("torch", "-")}, {fig.get("torch_threads", "-")} threads).']
+
+
 def markdown(study: dict) -> str:
     """Return the whole page."""
     plant = study['plant']
@@ -94,6 +105,7 @@ def markdown(study: dict) -> str:
         f'{fig.get("fit_s", "-")} s; {fig.get("trees", "-")} trees, {fig.get("nodes", "-")} '
         f'nodes; calibration-set balanced accuracy '
         f'{_f(fig.get("calibration_balanced_accuracy"), 3)}.',
+        *_cnn_line(study.get('cnn')),
         f'- Whole analysis of one plant file (reading, fits, signatures, detector, '
         f'Hammerstein, HTML): median {sorted(secs)[len(secs) // 2]:.2f} s, max {max(secs):.2f} s.',
         '',

@@ -11,6 +11,7 @@ order; the model file stores it and refuses a different one.
 
 import numpy as np
 
+from stiction_ros.analysis.detection.cnn import cnn_logit
 from stiction_ros.analysis.detection.output_error import output_error_figures
 from stiction_ros.analysis.detection.prediction_error import prediction_error_figures
 from stiction_ros.analysis.detection.resolve import lag1, period_sanity, robust_noise
@@ -28,7 +29,7 @@ FEATURE_NAMES = (
     'pv_noise_share', 'op_noise_share', 'error_lag1', 'error_bias', 'op_ramp_share',
     'op_saturated', 'sp_steps_per_100',
     'ham_variance_ratio', 'ham_log_lr', 'ham_S_rel', 'ham_J_over_S', 'ham_reliable',
-    'oe_ratio', 'oe_S_rel', 'pe_ratio', 'pe_c',
+    'oe_ratio', 'oe_S_rel', 'pe_ratio', 'pe_c', 'cnn_logit',
 )
 # A coarser Hammerstein search than the one that sizes the band in the
 # report: the detector needs how much a sticky valve explains, not S to 0.2 %.
@@ -156,6 +157,7 @@ def extract(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: 
         'sp_steps_per_100': 100.0 * len(set_point_steps(sp_arr, pv_sig)) / n,
         **hammerstein_features(op, pv, sample_time, integrating),
         'oe_ratio': oe_ratio, 'oe_S_rel': oe_s, 'pe_ratio': pe_ratio, 'pe_c': pe_c,
+        'cnn_logit': cnn_logit(op, pv, sp_arr, integrating),
     }
     vec = np.array([f[k] for k in FEATURE_NAMES], dtype=np.float64)
     vec[~np.isfinite(vec)] = NAN

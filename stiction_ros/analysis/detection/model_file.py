@@ -75,7 +75,8 @@ class TreeModel:
         return np.interp(self.raw_score(x), self.calib_x, self.calib_y)
 
 
-def _digest(arrays: dict, header: str) -> str:
+def digest(arrays: dict, header: str) -> str:
+    """Return the SHA-256 of ``arrays`` (by name) and the JSON ``header``."""
     h = hashlib.sha256(header.encode())
     for name in sorted(arrays):
         h.update(name.encode())
@@ -90,7 +91,7 @@ def save(path: str | Path, model: TreeModel) -> None:
                          'feature_names': list(model.feature_names),
                          'baseline': model.baseline, 'meta': model.meta}, sort_keys=True)
     arrays['header'] = np.array(header)
-    arrays['sha256'] = np.array(_digest({k: arrays[k] for k in ARRAYS}, header))
+    arrays['sha256'] = np.array(digest({k: arrays[k] for k in ARRAYS}, header))
     with open(path, 'wb') as fh:
         np.savez_compressed(fh, **arrays)
 
@@ -122,6 +123,27 @@ def _check(a: dict, header: dict, path: Path) -> None:
         raise DetectorFileError(f'{path}: the calibration map is not a monotone [0, 1] map')
 
 
+def read_arrays(path: Path, names: tuple, what: str, rebuild: str) -> dict:
+    """
+    Return the arrays of the ``.npz`` at ``path``, refusing pickles and missing ``names``.
+
+    ``what`` names the file in the error; ``rebuild`` says how to make it again.
+    """
+    if not path.is_file():
+        raise DetectorFileError(f'{path}: no {what} model file; rebuild it with {rebuild}')
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, TypeError, AttributeError, zipfile.BadZipFile,
+            zlib.error) as exc:
+        # TypeError/AttributeError: a plain .npy, which np.load returns as one array.
+        raise DetectorFileError(f'{path}: not a readable {what} file ({exc})') from None
+    missing = [k for k in names if k not in a]
+    if missing:
+        raise DetectorFileError(f'{path}: missing arrays {missing}')
+    return a
+
+
 def load(path: str | Path | None = None, feature_names: tuple | None = None) -> TreeModel:
     """
     Return the :class:`TreeModel` stored at ``path`` (default: the shipped detector).
@@ -130,19 +152,7 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
     other features is refused.  Raises :class:`DetectorFileError`.
     """
     path = Path(path) if path is not None else DEFAULT_PATH
-    if not path.is_file():
-        raise DetectorFileError(f'{path}: no detector model file; rebuild it with '
-                                f'`make detector`')
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            a = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, TypeError, AttributeError, zipfile.BadZipFile,
-            zlib.error) as exc:
-        # TypeError/AttributeError: a plain .npy, which np.load returns as one array.
-        raise DetectorFileError(f'{path}: not a readable detector file ({exc})') from None
-    missing = [k for k in (*ARRAYS, 'header', 'sha256') if k not in a]
-    if missing:
-        raise DetectorFileError(f'{path}: missing arrays {missing}')
+    a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'detector', '`make detector`')
     try:
         header = json.loads(str(a['header']))
     except ValueError:
@@ -160,7 +170,7 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
         if a[k].dtype != t or a[k].ndim != 1:
             raise DetectorFileError(f'{path}: array {k} is {a[k].dtype}[{a[k].ndim}-D], '
                                     f'expected 1-D {np.dtype(t)}')
-    if _digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
+    if digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
         raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
     _check(a, header, path)
     names = tuple(header['feature_names'])

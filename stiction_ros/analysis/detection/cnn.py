@@ -1,0 +1,165 @@
+"""
+A small 1-D convolutional network that reads the record itself: one more detector figure.
+
+The engineered figures say what a stiction test looks for; the network
+learns from a large simulated corpus (``make cnn``: 32 000 records of seeds
+the detector's own training never uses) what else in the shape of OP and PV
+tells a sticking valve.  Its logit is one figure among the others
+(``cnn_logit``), so the boosted trees weigh it against the physics.
+
+The network, in NumPy so the analyzer needs no deep-learning library: five
+input channels per sample (PV and SP on PV's scale, OP, and the changes of
+PV and OP, each standardised over the record, so units and offsets drop
+out), a 7-tap convolution to ``C`` channels, seven residual convolutions of 5
+taps dilated 1 to 64 (a receptive field of about 500 samples: an hour's
+stuck period at 10 s), the mean and the maximum of each channel over the
+record, the loop type, and two dense layers.  Any record length works;
+training cut random windows of 500 samples.
+
+The weights are plain arrays in ``resources/stiction_cnn.npz`` with a JSON
+header and a SHA-256, loaded without pickle; a missing, damaged or edited
+file is a :class:`DetectorFileError`.
+"""
+
+from dataclasses import dataclass
+from functools import lru_cache
+import json
+from pathlib import Path
+
+import numpy as np
+
+from stiction_ros.analysis.detection.model_file import digest, read_arrays
+from stiction_ros.errors import DetectorFileError
+
+FORMAT = 'stiction_ros.cnn'
+VERSION = 1
+N_CHANNELS = 5
+CLIP = 10.0
+DEFAULT_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn.npz'
+ARRAYS = ('inp_w', 'inp_b', 'conv_w', 'conv_b', 'dilations', 'fc1_w', 'fc1_b', 'fc2_w', 'fc2_b')
+
+
+def channels(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
+    """
+    Return the network's input, shape (5, n): PV, SP, OP, dPV, dOP standardised.
+
+    SP shares PV's offset and scale so a set-point step and the PV that
+    follows it line up; each change is scaled by its own spread.  Clipped to
+    +-10 so one spike cannot saturate the network.
+    """
+    op = np.asarray(op, dtype=np.float64)
+    pv = np.asarray(pv, dtype=np.float64)
+    sp = np.full(pv.shape, pv.mean()) if sp is None else np.broadcast_to(
+        np.asarray(sp, dtype=np.float64), pv.shape)
+    tiny = 1e-12
+    m, s = pv.mean(), pv.std() + tiny
+    dpv = np.diff(pv, prepend=pv[0])
+    dop = np.diff(op, prepend=op[0])
+    out = np.stack([(pv - m) / s, (sp - m) / s, (op - op.mean()) / (op.std() + tiny),
+                    dpv / (dpv.std() + tiny), dop / (dop.std() + tiny)])
+    return np.clip(out, -CLIP, CLIP).astype(np.float32)
+
+
+def conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.ndarray:
+    """Return the same-length dilated convolution of ``x`` (C_in, n) by ``w`` (C_out, C_in, k)."""
+    k = w.shape[2]
+    pad = dilation * (k - 1) // 2
+    n = x.shape[1]
+    xp = np.pad(x, ((0, 0), (pad, pad)))
+    out = np.repeat(np.asarray(b, dtype=np.float64)[:, None], n, axis=1)
+    # einsum's own loop, not BLAS: BLAS splits a product differently with
+    # each thread count, and a figure must not change with the machine's load
+    # (a pool worker runs one BLAS thread, the main process several).
+    for j in range(k):
+        out += np.einsum('oi,it->ot', w[:, :, j], xp[:, j * dilation:j * dilation + n],
+                         optimize=False)
+    return out
+
+
+@dataclass(frozen=True)
+class CnnModel:
+    """The network's weights (stored as float32, held as float64) and its file's metadata."""
+
+    inp_w: np.ndarray
+    inp_b: np.ndarray
+    conv_w: np.ndarray
+    conv_b: np.ndarray
+    dilations: np.ndarray
+    fc1_w: np.ndarray
+    fc1_b: np.ndarray
+    fc2_w: np.ndarray
+    fc2_b: np.ndarray
+    meta: dict
+
+    def logit(self, x: np.ndarray, integrating: bool) -> float:
+        """Return the log-odds of stiction for the input ``x`` from :func:`channels`."""
+        x = np.asarray(x, dtype=np.float64)
+        h = np.maximum(conv1d(x, self.inp_w, self.inp_b, 1), 0.0)
+        for w, b, d in zip(self.conv_w, self.conv_b, self.dilations):
+            h = h + conv1d(np.maximum(h, 0.0), w, b, int(d))
+        pooled = np.concatenate([h.mean(axis=1), h.max(axis=1),
+                                 np.array([float(integrating)])])
+        z = np.maximum(self.fc1_w @ pooled + self.fc1_b, 0.0)
+        return float((self.fc2_w @ z)[0] + self.fc2_b[0])
+
+
+def save(path: str | Path, arrays: dict, meta: dict) -> None:
+    """Write the network ``arrays`` (:data:`ARRAYS`) and ``meta`` to ``path``."""
+    a = {k: np.asarray(arrays[k], dtype=np.int32 if k == 'dilations' else np.float32)
+         for k in ARRAYS}
+    header = json.dumps({'format': FORMAT, 'version': VERSION, 'meta': meta}, sort_keys=True)
+    with open(path, 'wb') as fh:
+        np.savez_compressed(fh, **a, header=np.array(header), sha256=np.array(digest(a, header)))
+
+
+def _check(a: dict, path: Path) -> None:
+    c, cin, k0 = a['inp_w'].shape if a['inp_w'].ndim == 3 else (0, 0, 0)
+    layers = a['dilations'].shape[0] if a['dilations'].ndim == 1 else -1
+    hidden = a['fc1_b'].shape[0] if a['fc1_b'].ndim == 1 else -1
+    want = {'inp_w': (c, N_CHANNELS, k0), 'inp_b': (c,), 'conv_b': (layers, c),
+            'fc1_w': (hidden, 2 * c + 1), 'fc2_w': (1, hidden), 'fc2_b': (1,)}
+    for k, shape in want.items():
+        if a[k].shape != shape:
+            raise DetectorFileError(f'{path}: array {k} has shape {a[k].shape}, expected {shape}')
+    if a['conv_w'].ndim != 4 or a['conv_w'].shape[:3] != (layers, c, c) or c == 0:
+        raise DetectorFileError(f'{path}: convolution weights of shape {a["conv_w"].shape}')
+    if k0 % 2 == 0 or a['conv_w'].shape[3] % 2 == 0 or np.any(a['dilations'] < 1):
+        raise DetectorFileError(f'{path}: kernels must be odd and dilations positive')
+    if not all(np.all(np.isfinite(a[k])) for k in ARRAYS):
+        raise DetectorFileError(f'{path}: NaN or infinity in the weights')
+
+
+def load(path: str | Path | None = None) -> CnnModel:
+    """Return the network at ``path`` (default: the shipped one); bad files raise."""
+    path = Path(path) if path is not None else DEFAULT_PATH
+    a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'CNN', '`make cnn`')
+    try:
+        header = json.loads(str(a['header']))
+    except ValueError:
+        raise DetectorFileError(f'{path}: damaged header') from None
+    if (not isinstance(header, dict) or header.get('format') != FORMAT
+            or header.get('version') != VERSION or not isinstance(header.get('meta'), dict)):
+        raise DetectorFileError(f'{path}: not a {FORMAT} version {VERSION} file')
+    for k in ARRAYS:
+        want = np.int32 if k == 'dilations' else np.float32
+        if a[k].dtype != want:
+            raise DetectorFileError(f'{path}: array {k} is {a[k].dtype}, '
+                                    f'expected {np.dtype(want)}')
+    if digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
+        raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
+    _check(a, path)
+    # Float64 for the arithmetic (exact from float32): einsum on mixed types
+    # casts on every call, six times slower.
+    return CnnModel(*(a[k].astype(np.float64) if k != 'dilations' else a[k] for k in ARRAYS),
+                    header['meta'])
+
+
+@lru_cache(maxsize=2)
+def _shipped(path: str | None) -> CnnModel:
+    return load(path)
+
+
+def cnn_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, integrating: bool,
+              path: str | None = None) -> float:
+    """Return the shipped network's log-odds of stiction for one contiguous record."""
+    return _shipped(path).logit(channels(op, pv, sp), integrating)

@@ -1,0 +1,159 @@
+"""
+Train the detector's 1-D CNN (:mod:`cnn`) on simulated loops and export it as arrays.
+
+Only ``make cnn`` imports this module: it needs PyTorch (CPU), which neither
+the analyzer nor the tests do.  The corpus is drawn like the detector's
+training set (``stiction_ros.sim.corpus``) from its own seed range, which
+the boosted trees' training, calibration and scoring sets never touch, so
+the network's logit on those sets is an honest out-of-sample figure.
+Records left out of the detector's sets (hidden stiction, not judgeable)
+are left out here too.
+"""
+
+from concurrent.futures import ProcessPoolExecutor
+import time
+
+import numpy as np
+
+from stiction_ros._threads import one_blas_thread
+from stiction_ros.analysis.detection.cnn import channels, CnnModel, N_CHANNELS
+
+CORPUS = range(2_000_000, 2_040_000)
+WIDTH = 32
+DILATIONS = (1, 2, 4, 8, 16, 32, 64)
+HIDDEN = 32
+EPOCHS = 10
+CROP = 500
+BATCH = 64
+SEED = 0
+
+
+def _record(seed: int):
+    from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
+    from stiction_ros.analysis.detection.resolve import judgeable
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(seed)
+    rec = simulate(sc)
+    if sc.label and stiction_footprint(sc, rec) < MIN_FOOTPRINT:
+        return None
+    if not judgeable(rec['op'], rec['pv'], sc.sample_time).ok:
+        return None
+    return seed, channels(rec['op'], rec['pv'], rec['sp']), bool(sc.label), bool(sc.integrating)
+
+
+def corpus(seeds, jobs: int = 2, say=print) -> dict:
+    """Return the network inputs of ``seeds``: ``x`` (5, total) with record offsets ``off``."""
+    t0, recs = time.perf_counter(), []
+    with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
+        for i, r in enumerate(pool.map(_record, seeds, chunksize=64), 1):
+            if r is not None:
+                recs.append(r)
+            if i % 5000 == 0 or i == len(seeds):
+                say(f'  corpus: {i}/{len(seeds)} seeds, {len(recs)} records '
+                    f'({time.perf_counter() - t0:.0f} s)')
+    lengths = np.array([r[1].shape[1] for r in recs])
+    return {'seed': np.array([r[0] for r in recs]),
+            'x': np.concatenate([r[1] for r in recs], axis=1),
+            'off': np.concatenate([[0], np.cumsum(lengths)]),
+            'y': np.array([r[2] for r in recs]), 'integ': np.array([r[3] for r in recs])}
+
+
+def _network():
+    import torch
+    from torch import nn
+
+    class Net(nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.inp = nn.Conv1d(N_CHANNELS, WIDTH, 7, padding=3)
+            self.convs = nn.ModuleList([nn.Conv1d(WIDTH, WIDTH, 5, dilation=d, padding=2 * d)
+                                        for d in DILATIONS])
+            self.fc1 = nn.Linear(2 * WIDTH + 1, HIDDEN)
+            self.fc2 = nn.Linear(HIDDEN, 1)
+
+        def forward(self, x, integ):
+            h = torch.relu(self.inp(x))
+            for conv in self.convs:
+                h = h + conv(torch.relu(h))
+            pooled = torch.cat([h.mean(-1), h.amax(-1), integ[:, None]], 1)
+            return self.fc2(torch.relu(self.fc1(pooled)))[:, 0]
+    return Net()
+
+
+def to_model(net, meta: dict) -> CnnModel:
+    """Return the NumPy :class:`CnnModel` of a trained network."""
+    sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in net.state_dict().items()}
+    n = len(DILATIONS)
+    return CnnModel(sd['inp.weight'], sd['inp.bias'],
+                    np.stack([sd[f'convs.{i}.weight'] for i in range(n)]),
+                    np.stack([sd[f'convs.{i}.bias'] for i in range(n)]),
+                    np.array(DILATIONS, dtype=np.int32), sd['fc1.weight'], sd['fc1.bias'],
+                    sd['fc2.weight'], sd['fc2.bias'], meta)
+
+
+def _logits(net, data: dict) -> np.ndarray:
+    import torch
+    out = np.zeros(len(data['y']))
+    net.eval()
+    with torch.no_grad():
+        for i in range(len(out)):
+            x = torch.from_numpy(data['x'][:, data['off'][i]:data['off'][i + 1]])[None]
+            out[i] = net(x, torch.tensor([float(data['integ'][i])])).item()
+    net.train()
+    return out
+
+
+def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print):
+    """
+    Return the trained torch network and its figures.
+
+    Adam under a one-cycle learning rate (peak 2e-3), binary cross-entropy
+    with the sticky class weighted to balance, random windows of ``CROP``
+    samples.  ``check``: a held-out set whose balanced accuracy is reported
+    after each epoch (reported only; nothing is chosen on it).
+    """
+    import torch
+    from torch import nn
+    torch.manual_seed(SEED)
+    rng = np.random.default_rng(SEED)
+    net = _network()
+    x, off, y, integ = data['x'], data['off'], data['y'], data['integ']
+    n = len(y)
+    opt = torch.optim.Adam(net.parameters(), 1e-3)
+    steps = epochs * (n // BATCH)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, 2e-3, total_steps=steps)
+    lossf = nn.BCEWithLogitsLoss(pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1)))
+    t0, history = time.perf_counter(), []
+    for epoch in range(epochs):
+        perm, total = rng.permutation(n), 0.0
+        for b in range(n // BATCH):
+            idx = perm[b * BATCH:(b + 1) * BATCH]
+            starts = [off[i] + rng.integers(0, off[i + 1] - off[i] - CROP + 1) for i in idx]
+            xb = torch.from_numpy(np.stack([x[:, s:s + CROP] for s in starts]))
+            loss = lossf(net(xb, torch.from_numpy(integ[idx].astype(np.float32))),
+                         torch.from_numpy(y[idx].astype(np.float32)))
+            opt.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+            opt.step()
+            sched.step()
+            total += loss.item()
+        line = f'  epoch {epoch + 1}/{epochs}: loss {total / (n // BATCH):.4f}'
+        if check is not None:
+            lg = _logits(net, check)
+            ba = 0.5 * ((lg[check['y']] > 0).mean() + (lg[~check['y']] <= 0).mean())
+            history.append(round(float(ba), 4))
+            line += f', held-out balanced accuracy {ba:.4f}'
+        say(f'{line} ({time.perf_counter() - t0:.0f} s)')
+    return net, {'epochs': epochs, 'train_s': round(time.perf_counter() - t0, 1),
+                 'check_balanced_accuracy': history, 'torch': torch.__version__,
+                 'torch_threads': torch.get_num_threads()}
+
+
+def export_error(net, model: CnnModel, data: dict, count: int = 50) -> float:
+    """Return the largest |torch - NumPy| logit over the first ``count`` records of ``data``."""
+    sub = {**data, 'y': data['y'][:count]}
+    ref = _logits(net, sub)
+    got = [model.logit(data['x'][:, data['off'][i]:data['off'][i + 1]], bool(data['integ'][i]))
+           for i in range(len(ref))]
+    return float(np.max(np.abs(ref - np.array(got))))
