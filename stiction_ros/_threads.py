@@ -10,7 +10,7 @@ instead of 0.5 s.  A pool passes :func:`one_blas_thread` as its initializer.
 Limiting the libraries already loaded is not enough: SciPy brings its own
 OpenBLAS, loaded only when a worker first needs it, which then started a
 thread per core again (a pool simulating the detector's corpus ran 4 times
-slower: 800 records in 17.2 s against 4.4 s).  So the environment that a
+slower: 800 records in 17.2 s against 3.6 s).  So the environment that a
 library reads when it loads says one thread too.
 """
 

@@ -48,8 +48,11 @@ def test_the_input_does_not_see_units_offsets_or_the_set_points_own_scale():
 
 
 def test_the_shipped_network_never_saw_a_seed_the_detector_trains_calibrates_or_scores_on():
+    from stiction_ros.analysis.detection.cnn_train import CORPUS
     model = cnn.load()
     lo, hi = model.meta['corpus_seeds']
+    # What make cnn would draw now is what the shipped network was drawn from.
+    assert (lo, hi) == (CORPUS.start, CORPUS.stop)
     for r in (dataset.TRAIN, dataset.CALIBRATION, dataset.TEST):
         assert hi <= r.start or lo >= r.stop, r
     assert model.meta['figures']['max_abs_export_error'] < 1e-3
@@ -128,3 +131,45 @@ def test_the_training_command_refuses_a_corpus_too_small_to_learn_from(capsys):
     from stiction_ros.cli.cnn import main
     assert main(['--seeds', '10', '--out', '/nonexistent/x.npz']) == 2
     assert 'at least 200 seeds' in capsys.readouterr().err
+
+
+def test_numpy_gives_the_logit_pytorch_gives_for_the_same_weights():
+    torch = pytest.importorskip('torch')   # requirements/train.txt; CI runs without it
+    from stiction_ros.analysis.detection.cnn_train import _network, DILATIONS
+    m = cnn.load()
+    net = _network()
+    sd = {'inp.weight': m.inp_w, 'inp.bias': m.inp_b, 'fc1.weight': m.fc1_w,
+          'fc1.bias': m.fc1_b, 'fc2.weight': m.fc2_w, 'fc2.bias': m.fc2_b}
+    for i in range(len(DILATIONS)):
+        sd[f'convs.{i}.weight'], sd[f'convs.{i}.bias'] = m.conv_w[i], m.conv_b[i]
+    net.load_state_dict({k: torch.from_numpy(v.astype(np.float32)) for k, v in sd.items()})
+    net.eval()
+    rng = np.random.default_rng(3)
+    for n, integ in ((7, False), (333, True), (900, False)):
+        x = cnn.channels(np.cumsum(rng.normal(size=n)), rng.normal(size=n), None)
+        with torch.no_grad():
+            ref = net(torch.from_numpy(x)[None], torch.tensor([float(integ)])).item()
+        assert abs(ref - m.logit(x, integ)) < 1e-4
+
+
+def test_a_dilation_too_large_to_run_is_refused(tmp_path):
+    with np.load(cnn.DEFAULT_PATH) as z:
+        a = {k: z[k] for k in cnn.ARRAYS}
+        meta = json.loads(str(z['header']))['meta']
+    a['dilations'] = a['dilations'].copy()
+    a['dilations'][-1] = 2 ** 30
+    cnn.save(tmp_path / 'wide.npz', a, meta)
+    with pytest.raises(DetectorFileError, match='dilations'):
+        cnn.load(tmp_path / 'wide.npz')
+
+
+def test_trees_trained_with_another_network_are_refused(tmp_path):
+    from dataclasses import replace
+    from stiction_ros.analysis.detection import model_file
+    from stiction_ros.analysis.detection.detect import load_model
+    shipped = model_file.load()
+    assert shipped.meta['cnn_sha256'] == cnn.load().sha256
+    other = replace(shipped, meta={**shipped.meta, 'cnn_sha256': '0' * 64})
+    model_file.save(tmp_path / 'other.npz', other)
+    with pytest.raises(DetectorFileError, match='another CNN'):
+        load_model(str(tmp_path / 'other.npz'))

@@ -111,6 +111,20 @@ def test_heavy_libraries_are_imported_in_their_own_parts_only(library, allowed):
     assert not wrong, f'{library} imported outside {sorted(allowed)}: {wrong}'
 
 
+@pytest.mark.parametrize('library, modules', [
+    ('torch', {'analysis/detection/cnn_train.py'}),
+    ('sklearn', {'analysis/detection/train.py', 'cli/detector.py'}),
+])
+def test_training_libraries_stay_in_the_training_modules(library, modules):
+    # The analyzer runs without PyTorch and scikit-learn: only make cnn and
+    # make detector (and the tests) may import them.
+    wrong = [f'{p.relative_to(PACKAGE.parent)}:{line}' for p in _modules()
+             for line, name in _imports(p)
+             if name.split('.')[0] == library
+             and p.relative_to(PACKAGE).as_posix() not in modules]
+    assert not wrong, f'{library} imported outside {sorted(modules)}: {wrong}'
+
+
 def test_kernels_import_numpy_math_and_jit_only():
     allowed = {'numpy', 'math', 'stiction_ros._jit', 'stiction_ros.kernels'}
     wrong = []

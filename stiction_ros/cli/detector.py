@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.detection import dataset, model_file
+from stiction_ros.analysis.detection import cnn, dataset, model_file
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
@@ -60,7 +60,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
             'train_seeds': [tr_seeds.start, tr_seeds.stop],
             'calibration_seeds': [ca_seeds.start, ca_seeds.stop],
             'skipped': {'train': tr['skipped'], 'calibration': ca['skipped']},
-            'sklearn': sklearn.__version__, 'params': PARAMS,
+            'sklearn': sklearn.__version__, 'params': PARAMS, 'cnn_sha256': cnn.load().sha256,
             'date': datetime.date.today().isoformat()}
     model, clf = train(tr['x'], tr['y'], ca['x'], ca['y'], FEATURE_NAMES, meta)
     t2 = time.perf_counter()

@@ -35,6 +35,9 @@ FORMAT = 'stiction_ros.cnn'
 VERSION = 1
 N_CHANNELS = 5
 CLIP = 10.0
+# A dilation pads the record by this many samples per tap: bounded so that a
+# re-saved file with a huge one is refused rather than exhausting memory.
+MAX_DILATION = 4096
 DEFAULT_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn.npz'
 ARRAYS = ('inp_w', 'inp_b', 'conv_w', 'conv_b', 'dilations', 'fc1_w', 'fc1_b', 'fc2_w', 'fc2_b')
 
@@ -90,6 +93,7 @@ class CnnModel:
     fc2_w: np.ndarray
     fc2_b: np.ndarray
     meta: dict
+    sha256: str = ''
 
     def logit(self, x: np.ndarray, integrating: bool) -> float:
         """Return the log-odds of stiction for the input ``x`` from :func:`channels`."""
@@ -99,8 +103,9 @@ class CnnModel:
             h = h + conv1d(np.maximum(h, 0.0), w, b, int(d))
         pooled = np.concatenate([h.mean(axis=1), h.max(axis=1),
                                  np.array([float(integrating)])])
-        z = np.maximum(self.fc1_w @ pooled + self.fc1_b, 0.0)
-        return float((self.fc2_w @ z)[0] + self.fc2_b[0])
+        z = np.maximum(np.einsum('oi,i->o', self.fc1_w, pooled, optimize=False) + self.fc1_b,
+                       0.0)
+        return float(np.einsum('oi,i->o', self.fc2_w, z, optimize=False)[0] + self.fc2_b[0])
 
 
 def save(path: str | Path, arrays: dict, meta: dict) -> None:
@@ -123,8 +128,10 @@ def _check(a: dict, path: Path) -> None:
             raise DetectorFileError(f'{path}: array {k} has shape {a[k].shape}, expected {shape}')
     if a['conv_w'].ndim != 4 or a['conv_w'].shape[:3] != (layers, c, c) or c == 0:
         raise DetectorFileError(f'{path}: convolution weights of shape {a["conv_w"].shape}')
-    if k0 % 2 == 0 or a['conv_w'].shape[3] % 2 == 0 or np.any(a['dilations'] < 1):
-        raise DetectorFileError(f'{path}: kernels must be odd and dilations positive')
+    if (k0 % 2 == 0 or a['conv_w'].shape[3] % 2 == 0 or np.any(a['dilations'] < 1)
+            or np.any(a['dilations'] > MAX_DILATION) or hidden < 1 or layers < 1):
+        raise DetectorFileError(f'{path}: kernels must be odd, dilations 1-{MAX_DILATION}, '
+                                f'and there must be a layer and a hidden unit')
     if not all(np.all(np.isfinite(a[k])) for k in ARRAYS):
         raise DetectorFileError(f'{path}: NaN or infinity in the weights')
 
@@ -135,7 +142,7 @@ def load(path: str | Path | None = None) -> CnnModel:
     a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'CNN', '`make cnn`')
     try:
         header = json.loads(str(a['header']))
-    except ValueError:
+    except (ValueError, RecursionError):
         raise DetectorFileError(f'{path}: damaged header') from None
     if (not isinstance(header, dict) or header.get('format') != FORMAT
             or header.get('version') != VERSION or not isinstance(header.get('meta'), dict)):
@@ -146,12 +153,13 @@ def load(path: str | Path | None = None) -> CnnModel:
             raise DetectorFileError(f'{path}: array {k} is {a[k].dtype}, '
                                     f'expected {np.dtype(want)}')
     if digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
-        raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
+        raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged); '
+                                f'rebuild it with `make cnn`')
     _check(a, path)
     # Float64 for the arithmetic (exact from float32): einsum on mixed types
     # casts on every call, six times slower.
     return CnnModel(*(a[k].astype(np.float64) if k != 'dilations' else a[k] for k in ARRAYS),
-                    header['meta'])
+                    header['meta'], str(a['sha256']))
 
 
 @lru_cache(maxsize=2)

@@ -51,6 +51,14 @@ def corpus(seeds, jobs: int = 2, say=print) -> dict:
             if i % 5000 == 0 or i == len(seeds):
                 say(f'  corpus: {i}/{len(seeds)} seeds, {len(recs)} records '
                     f'({time.perf_counter() - t0:.0f} s)')
+    # Training cuts windows of CROP samples; the corpus never draws fewer
+    # than 500, but a shorter record would have no window to cut.
+    short = sum(r[1].shape[1] < CROP for r in recs)
+    recs = [r for r in recs if r[1].shape[1] >= CROP]
+    if short:
+        say(f'  corpus: {short} records shorter than {CROP} samples left out')
+    if not recs:
+        raise ValueError(f'no record of seeds {seeds[0]}-{seeds[-1]} can be learned from')
     lengths = np.array([r[1].shape[1] for r in recs])
     return {'seed': np.array([r[0] for r in recs]),
             'x': np.concatenate([r[1] for r in recs], axis=1),
@@ -119,6 +127,9 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
     net = _network()
     x, off, y, integ = data['x'], data['off'], data['y'], data['integ']
     n = len(y)
+    if n < BATCH or y.all() or not y.any():
+        raise ValueError(f'{n} records ({int(y.sum())} sticky): training needs at least '
+                         f'{BATCH} records and both labels')
     opt = torch.optim.Adam(net.parameters(), 1e-3)
     steps = epochs * (n // BATCH)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, 2e-3, total_steps=steps)

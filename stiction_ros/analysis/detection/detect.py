@@ -13,9 +13,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from stiction_ros.analysis.detection import model_file
+from stiction_ros.analysis.detection import cnn, model_file
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
+from stiction_ros.errors import DetectorFileError
 
 THRESHOLD = 0.5
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
@@ -53,7 +54,18 @@ class Detection:
 
 @lru_cache(maxsize=4)
 def _model(path: str | None) -> model_file.TreeModel:
-    return model_file.load(path, FEATURE_NAMES)
+    model = model_file.load(path, FEATURE_NAMES)
+    # Loaded here, not first after the slow fits, so a bad network file is
+    # refused before any record is read.  The trees learned what this
+    # network's logit means; one retrained since (make cnn without make
+    # detector) would feed them another.
+    net = cnn.load()
+    trained_with = model.meta.get('cnn_sha256')
+    if trained_with is not None and trained_with != net.sha256:
+        raise DetectorFileError(
+            f'{path or model_file.DEFAULT_PATH}: trained with another CNN ({trained_with[:12]}) '
+            f'than the one shipped ({net.sha256[:12]}); rebuild with `make detector`')
+    return model
 
 
 def load_model(path: str | None = None) -> model_file.TreeModel:

@@ -137,7 +137,8 @@ def read_arrays(path: Path, names: tuple, what: str, rebuild: str) -> dict:
     except (OSError, ValueError, EOFError, TypeError, AttributeError, zipfile.BadZipFile,
             zlib.error) as exc:
         # TypeError/AttributeError: a plain .npy, which np.load returns as one array.
-        raise DetectorFileError(f'{path}: not a readable {what} file ({exc})') from None
+        raise DetectorFileError(f'{path}: not a readable {what} file ({exc}); rebuild it '
+                                f'with {rebuild}') from None
     missing = [k for k in names if k not in a]
     if missing:
         raise DetectorFileError(f'{path}: missing arrays {missing}')
@@ -155,7 +156,7 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
     a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'detector', '`make detector`')
     try:
         header = json.loads(str(a['header']))
-    except ValueError:
+    except (ValueError, RecursionError):
         raise DetectorFileError(f'{path}: damaged header') from None
     if (not isinstance(header, dict) or not isinstance(header.get('feature_names'), list)
             or not isinstance(header.get('meta'), dict)
