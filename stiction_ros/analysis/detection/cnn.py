@@ -139,12 +139,8 @@ def _check(a: dict, path: Path) -> None:
 def load(path: str | Path | None = None) -> CnnModel:
     """Return the network at ``path`` (default: the shipped one); bad files raise."""
     path = Path(path) if path is not None else DEFAULT_PATH
-    a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'CNN', '`make cnn`')
-    try:
-        header = json.loads(str(a['header']))
-    except (ValueError, RecursionError):
-        raise DetectorFileError(f'{path}: damaged header') from None
-    if (not isinstance(header, dict) or header.get('format') != FORMAT
+    a, header = read_arrays(path, (*ARRAYS, 'sha256'), 'CNN', '`make cnn`')
+    if (header.get('format') != FORMAT
             or header.get('version') != VERSION or not isinstance(header.get('meta'), dict)):
         raise DetectorFileError(f'{path}: not a {FORMAT} version {VERSION} file')
     for k in ARRAYS:

@@ -123,11 +123,13 @@ def _check(a: dict, header: dict, path: Path) -> None:
         raise DetectorFileError(f'{path}: the calibration map is not a monotone [0, 1] map')
 
 
-def read_arrays(path: Path, names: tuple, what: str, rebuild: str) -> dict:
+def read_arrays(path: Path, names: tuple, what: str, rebuild: str) -> tuple[dict, dict]:
     """
-    Return the arrays of the ``.npz`` at ``path``, refusing pickles and missing ``names``.
+    Return the arrays of the ``.npz`` at ``path`` and its parsed JSON ``header``.
 
-    ``what`` names the file in the error; ``rebuild`` says how to make it again.
+    Refuses pickles, missing ``names`` and a header that is not a JSON
+    object.  ``what`` names the file in the error; ``rebuild`` says how to
+    make it again.
     """
     if not path.is_file():
         raise DetectorFileError(f'{path}: no {what} model file; rebuild it with {rebuild}')
@@ -139,10 +141,16 @@ def read_arrays(path: Path, names: tuple, what: str, rebuild: str) -> dict:
         # TypeError/AttributeError: a plain .npy, which np.load returns as one array.
         raise DetectorFileError(f'{path}: not a readable {what} file ({exc}); rebuild it '
                                 f'with {rebuild}') from None
-    missing = [k for k in names if k not in a]
+    missing = [k for k in (*names, 'header') if k not in a]
     if missing:
         raise DetectorFileError(f'{path}: missing arrays {missing}')
-    return a
+    try:
+        header = json.loads(str(a['header']))
+    except (ValueError, RecursionError):
+        header = None
+    if not isinstance(header, dict):
+        raise DetectorFileError(f'{path}: damaged header')
+    return a, header
 
 
 def load(path: str | Path | None = None, feature_names: tuple | None = None) -> TreeModel:
@@ -153,12 +161,8 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
     other features is refused.  Raises :class:`DetectorFileError`.
     """
     path = Path(path) if path is not None else DEFAULT_PATH
-    a = read_arrays(path, (*ARRAYS, 'header', 'sha256'), 'detector', '`make detector`')
-    try:
-        header = json.loads(str(a['header']))
-    except (ValueError, RecursionError):
-        raise DetectorFileError(f'{path}: damaged header') from None
-    if (not isinstance(header, dict) or not isinstance(header.get('feature_names'), list)
+    a, header = read_arrays(path, (*ARRAYS, 'sha256'), 'detector', '`make detector`')
+    if (not isinstance(header.get('feature_names'), list)
             or not isinstance(header.get('meta'), dict)
             or not isinstance(header.get('baseline'), (int, float))
             or not np.isfinite(header['baseline'])):
