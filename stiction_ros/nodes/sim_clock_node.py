@@ -14,11 +14,17 @@ loop node in turn waits, at its action instant, for its inputs of that
 sample (``input_wait`` in ``sampled.py``), since a message that reached the
 clock may not have reached them yet.  A busy machine then slows the run down
 instead of changing its result: no node misses a sample or acts on an old
-input.
+input.  While it waits, the clock repeats the current time every 0.1 s: a
+node's time source subscribes best-effort, and a node that lost the tick
+would never act on it.  A message given up on is counted as lost, so that a
+node that skipped a sample costs one stall, not one at every later tick.
+Until a topic's first message has come (its node is up and hears the
+clock) the clock waits up to ``wait_timeout`` for it, not ``sync_timeout``.
 
 Before it starts, the clock can wait until given topics have enough
 subscribers (``wait_for: ['op=2', 'mv=2']``), so that no node misses the start.
-It exits after ``stop_at`` seconds of sim time (0: never).
+It exits at ``stop_at`` seconds of sim time (0: never), once the messages
+due by then have come.
 
 A namespaced loop runs on its own clock topic: ``loop`` (and the launch file)
 remaps ``/clock`` to ``<namespace>/clock`` for this node and for the time source
@@ -38,6 +44,10 @@ from std_msgs.msg import Float64
 from stiction_ros.nodes.params import declare, Param
 from stiction_ros.nodes.run import run
 from stiction_ros.nodes.sampled import DATA_QOS as SYNC_QOS, StartupError
+
+
+# Wall seconds between repeats of the current time while the clock waits for a node.
+RESEND = 0.1
 
 
 class SimClockNode(Node):
@@ -108,6 +118,7 @@ class SimClockNode(Node):
         self._last_arrival = 0.0
         self.n = 0
         self._running = False
+        self._last_tick = False
         self.finished = rclpy.task.Future()
         # The time source of every node subscribes best-effort with depth 1.
         self.pub = self.create_publisher(Clock, '/clock', QoSProfile(
@@ -149,20 +160,21 @@ class SimClockNode(Node):
 
     def _counter(self, entry):
         def on_message(msg):
-            entry['count'] += 1
+            # Never more than are due: a message forgiven as lost that comes after
+            # all must not stand in for the next one.
+            entry['count'] = min(entry['count'] + 1, self._due_count(entry))
             self._last_arrival = time.monotonic()
             self._tick()
         return on_message
 
-    def _due(self):
-        """Return the sync topics still missing a message due by the current time."""
+    def _due_count(self, entry):
+        """Return how many messages of a sync topic are due by the current time."""
         now = self.start_ns + self.n * self.step_ns
-        late = []
-        for e in self.syncs:
-            due = 0 if now < e['first_ns'] else (now - e['first_ns']) // self.ts_ns + 1
-            if e['count'] < due:
-                late.append(e['topic'])
-        return late
+        return 0 if now < entry['first_ns'] else (now - entry['first_ns']) // self.ts_ns + 1
+
+    def _due(self):
+        """Return the sync entries still missing a message due by the current time."""
+        return [e for e in self.syncs if e['count'] < self._due_count(e)]
 
     def _publish(self, n):
         ns = int(round(self.values['start'] * 1e9)) + n * self.step_ns
@@ -181,14 +193,30 @@ class SimClockNode(Node):
         late = self._due()
         if late:
             if self._waiting_since is None:
-                self._waiting_since = now
-            if now - self._waiting_since < self.values['sync_timeout']:
+                self._waiting_since = self._resent_at = now
+            # The first message of a topic proves that its node is up and hears the clock;
+            # until then, starting up under load, it gets the start-up timeout.
+            started = all(e['count'] > 0 for e in late)
+            timeout = self.values['sync_timeout' if started else 'wait_timeout']
+            if now - self._waiting_since < timeout:
+                if now - self._resent_at >= RESEND:
+                    # Time sources subscribe best-effort: a node that lost this tick
+                    # would never act on it.  The same time again changes nothing else.
+                    self._resent_at = now
+                    self._publish(self.n)
                 return
             self.stalls += 1
             self.get_logger().warning(
-                f'moved on without {late} after {self.values["sync_timeout"]} s '
-                f'({self.stalls} stalls so far)', throttle_duration_sec=5.0)
+                f'moved on without {[e["topic"] for e in late]} after '
+                f'{timeout} s ({self.stalls} stalls so far)', throttle_duration_sec=5.0)
+            # Counted as lost: a node that skipped a sample never sends that message,
+            # and a count kept one short would stall every later tick for sync_timeout.
+            for e in late:
+                e['count'] = self._due_count(e)
         self._waiting_since = None
+        if self._last_tick:
+            self._finish(now)
+            return
         if now - self._last_arrival < self.values['sync_margin']:
             self._next_wall = self._last_arrival + self.values['sync_margin']
             return
@@ -196,14 +224,19 @@ class SimClockNode(Node):
         self.n += 1
         t = self._publish(self.n)
         stop = self.values['stop_at']
-        if stop > 0 and t >= stop - 1e-9:
-            wall = now - self._start_wall
-            self.get_logger().info(
-                f'reached {t:g} s of sim time in {wall:.1f} s: rtf {t / max(wall, 1e-9):.1f}, '
-                f'{self.stalls} stalls')
-            self._running = False
-            self._timer.cancel()
-            self.finished.set_result(0)
+        # Finished once the messages due at this last tick have come, as at any tick:
+        # stopping at once left a node that was slow to hear it one sample short.
+        self._last_tick = stop > 0 and t >= stop - 1e-9
+
+    def _finish(self, now):
+        t = (self.start_ns + self.n * self.step_ns) / 1e9
+        wall = now - self._start_wall
+        self.get_logger().info(
+            f'reached {t:g} s of sim time in {wall:.1f} s: rtf {t / max(wall, 1e-9):.1f}, '
+            f'{self.stalls} stalls')
+        self._running = False
+        self._timer.cancel()
+        self.finished.set_result(0)
 
 
 def main(args=None):
