@@ -378,7 +378,9 @@ def test_structural_faults_of_bags(tmp_path, case):
     elif case == 'empty mcap':
         mcap.write_bytes(b'')
     elif case.startswith('metadata names'):
-        target = 'gone.mcap' if 'missing' in case else '../../../../etc/passwd'
+        # An existing bag beside this one, of other length: were it followed, 30 samples.
+        target = 'gone.mcap' if 'missing' in case else '../other/other_0.mcap'
+        write_bag(tmp_path / 'other', n=30)
         meta = (bag / 'metadata.yaml').read_text().replace('bag_0.mcap', target)
         (bag / 'metadata.yaml').write_text(meta)
     elif case == 'no mcap at all':

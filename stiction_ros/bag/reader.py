@@ -174,7 +174,10 @@ def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
         try:
             info = yaml.safe_load(meta.read_text(encoding='utf-8'))['rosbag2_bagfile_information']
             files = [path / f for f in info['relative_file_paths']]
-            if files and all(f.is_file() for f in files):
+            # Only files inside the bag: a metadata.yaml that names ../../etc/passwd
+            # (damaged or hostile) must not make the reader open it.
+            inside = path.resolve()
+            if files and all(f.is_file() and f.resolve().is_relative_to(inside) for f in files):
                 return files
         except (yaml.YAMLError, KeyError, TypeError):
             pass
