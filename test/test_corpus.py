@@ -152,3 +152,25 @@ def test_records_are_finite_in_range_and_stable(corpus):
             assert np.mean((r['op'] <= 0.0) | (r['op'] >= 100.0)) < 0.02
     inside = np.concatenate([(r['op'] > 5.0) & (r['op'] < 95.0) for r in records])
     assert inside.mean() > 0.97
+
+
+def test_set_points_are_held_stepped_by_operators_or_remote(corpus):
+    # Historian records show all three, and a cascade secondary's remote set point
+    # (its master's output) moves at almost every sample; level loops mostly hold theirs.
+    scenarios, records = corpus
+    kinds = Counter()
+    for s, r in zip(scenarios, records):
+        moving = float(np.mean(np.diff(r['sp']) != 0.0))
+        kind = 'held' if moving == 0.0 else 'remote' if moving > 0.5 else 'steps'
+        kinds[kind, s.integrating] += 1
+        if kind == 'steps':
+            assert np.sum(np.diff(r['sp']) != 0.0) <= 15, s
+        if kind == 'remote':
+            # a wandering set point, not a ramp: it turns back
+            d = np.diff(r['sp'])
+            assert np.any(d > 0) and np.any(d < 0), s
+    for kind in ('held', 'steps', 'remote'):
+        assert kinds[kind, False] >= 10, kinds
+    assert kinds['remote', True] == 0, kinds
+    integrating = sum(n for (k, i), n in kinds.items() if i)
+    assert kinds['held', True] > 0.6 * integrating, kinds

@@ -297,12 +297,27 @@ def _loads(rng, sc, n):
 
 
 def _set_point(rng, sc, n):
-    """Return set-point moves in % MV equivalent; level loops mostly hold theirs."""
+    """
+    Return set-point moves in % MV equivalent, of the kinds historians show.
+
+    Held; a few operator steps; many small operator moves; or a remote set
+    point: a cascade secondary's SP is its master's output and moves a little
+    at almost every sample (a tenth of the shared plant records have more
+    set-point moves than the corpus drew before).  Level loops are mostly
+    masters, and mostly hold theirs.
+    """
+    p = [0.8, 0.15, 0.05, 0.0] if sc.integrating else [0.35, 0.35, 0.15, 0.15]
+    kind = _pick(rng, ('held', 'steps', 'busy', 'remote'), p)
     moves = np.zeros(n)
-    if rng.random() < (0.2 if sc.integrating else 0.6):
-        for _ in range(int(rng.integers(1, 4))):
-            at = int(rng.uniform(0.05, 0.9) * n)
-            moves[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, 0.5, 8.0)
+    if kind in ('steps', 'busy'):
+        count, size = ((1, 4), (0.5, 8.0)) if kind == 'steps' else ((4, 16), (0.2, 3.0))
+        for _ in range(int(rng.integers(*count))):
+            at = int(rng.uniform(0.05, 0.95) * n)
+            moves[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, *size)
+    elif kind == 'remote':
+        walk = np.cumsum(rng.standard_normal(n))
+        walk = _filtered(walk - walk[0], _logu(rng, 2.0, 50.0))
+        moves = walk * (_logu(rng, 0.5, 6.0) / max(float(np.std(walk)), 1e-9))
     return moves
 
 
