@@ -18,6 +18,7 @@ import numpy as np
 from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
+from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable
 from stiction_ros.analysis.verdict import from_signatures
 
 # Stiction whose footprint on PV is below the noise (ratio) counts as hidden.
@@ -68,10 +69,15 @@ def featurize_seed(seed: int) -> tuple:
         # Stiction buried under the PV noise is in no OP/PV record to find;
         # scoring it would measure luck.  Counted, never trained or scored.
         return seed, None, sc.label, kind, 'stiction_hidden', False
-    judge = judgeable(rec['op'], rec['pv'], sc.sample_time)
+    # The run-time path: no simulated record holds a row (test_stale_rows), so
+    # this drops nothing, and says so should the simulator ever change.
+    op, pv, sp, held = drop_held(rec['op'], rec['pv'], rec['sp'])
+    judge = holds_judgeable(held, sc.sample_time)
+    if judge.ok:
+        judge = judgeable(op, pv, sc.sample_time)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False
-    vec, ev = extract(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
+    vec, ev = extract(op, pv, sp, sc.sample_time, sc.integrating)
     osc = ev['oscillation']
     judge = cycle_judgeable(osc.oscillating, osc.period_s, sc.sample_time)
     if not judge.ok:
@@ -86,6 +92,7 @@ SOURCES = ('analysis/detection/features.py', 'analysis/detection/stuck.py',
            'analysis/detection/cnn.py', 'resources/stiction_cnn.npz',
            'analysis/detection/output_error.py', 'analysis/detection/prediction_error.py',
            'analysis/detection/resolve.py', 'analysis/detection/dataset.py',
+           'analysis/detection/stale.py',
            'analysis/oscillation.py', 'analysis/hammerstein', 'analysis/fit_core.py',
            'analysis/verdict.py', 'analysis/signatures', 'kernels', 'sim', 'models')
 

@@ -16,6 +16,7 @@ import numpy as np
 from stiction_ros.analysis.detection import cnn, model_file
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
+from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
 from stiction_ros.errors import DetectorFileError
 
 THRESHOLD = 0.5
@@ -73,12 +74,15 @@ def load_model(path: str | None = None) -> model_file.TreeModel:
     return _model(None if path is None else str(path))
 
 
-def _t(k: int, ts: float) -> str:
-    return f'{k * ts:.0f} s'
+def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
+    """
+    Return the evidence as sentences: which test saw what, where in time.
 
-
-def evidence_lines(ev: dict, ts: float) -> list:
-    """Return the evidence as sentences: which test saw what, where in time."""
+    ``rows`` maps a sample the features read to its row in the record (held
+    rows dropped); None when they are the same.
+    """
+    def _t(k: int, ts: float) -> str:
+        return f'{(k if rows is None else rows[min(k, len(rows) - 1)]) * ts:.0f} s'
     out = []
     st = ev['stuck']
     for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:
@@ -116,22 +120,32 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     missing or damaged (never a silent fallback).
     """
     model = load_model(model_path)
-    judge = judgeable(op, pv, sample_time)
     info = {'file': model.meta.get('file', ''), 'version': model.meta.get('version'),
             'trained_on': model.meta.get('trained_on', '')}
+    # A historian's held rows are not measurements (stale.py); the evidence
+    # below names rows of the record as given, not of the fresh rows read.
+    op, pv, sp, held = drop_held(op, pv, sp)
+    holds = {'held_rows': held.count} if held.count else {}
+    judge = holds_judgeable(held, sample_time)
+    if judge.ok:
+        judge = judgeable(op, pv, sample_time)
     if not judge.ok:
-        return Detection('cannot tell', None, judge.reason, judge, model=info)
+        return Detection('cannot tell', None, judge.reason, judge, model=info, details=holds)
     vec, ev = extract(op, pv, sp, sample_time, integrating)
+    rows = held.kept if held.count else None
+    lines = evidence_lines(ev, sample_time, rows)
+    if held.count:
+        # A row or two held in 751 is routine; a third of the record is not.
+        lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
     osc = ev['oscillation']
     judge = cycle_judgeable(osc.oscillating, osc.period_s, sample_time)
     if not judge.ok:
-        return Detection('cannot tell', None, judge.reason, judge,
-                         evidence_lines(ev, sample_time), ev['features'],
-                         ev['period_problem'], info)
+        return Detection('cannot tell', None, judge.reason, judge, lines, ev['features'],
+                         ev['period_problem'], info, holds)
     p = float(model.probability(vec)[0])
     answer = 'stiction' if p >= THRESHOLD else 'no stiction'
     reason = (f'learned detector: probability of stiction {p:.2f} '
               f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
-    return Detection(answer, round(p, 4), reason, judge, evidence_lines(ev, sample_time),
-                     ev['features'], ev['period_problem'], info,
-                     {'stuck': ev['stuck'].to_json(sample_time)})
+    return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
+                     ev['period_problem'], info,
+                     {'stuck': ev['stuck'].to_json(sample_time, rows), **holds})

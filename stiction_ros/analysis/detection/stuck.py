@@ -50,12 +50,19 @@ class StuckResult:
     ramp_r2: float = float('nan')
     log_offset: float = float('nan')
 
-    def to_json(self, sample_time: float) -> dict:
-        """Return the evidence in seconds, for the report."""
-        return {'stuck_periods_s': [[round(a * sample_time, 1), round(b * sample_time, 1),
-                                     round(float(t), 4)] for a, b, t in self.stuck[:20]],
-                'slips_s': [[round(k * sample_time, 1), round(float(z), 1)]
-                            for k, z in self.slips[:20]],
+    def to_json(self, sample_time: float, rows: np.ndarray | None = None) -> dict:
+        """
+        Return the evidence in seconds, for the report.
+
+        ``rows`` maps a sample read to its row in the record (when held rows
+        were dropped before reading); None when they are the same.
+        """
+        def s(k):
+            return round(float(k if rows is None else rows[min(k, len(rows) - 1)])
+                         * sample_time, 1)
+        return {'stuck_periods_s': [[s(a), s(b), round(float(t), 4)]
+                                    for a, b, t in self.stuck[:20]],
+                'slips_s': [[s(k), round(float(z), 1)] for k, z in self.slips[:20]],
                 'stuck_fraction': round(self.stuck_fraction, 4),
                 'stuck_op_share': round(self.stuck_op_share, 4),
                 'slips_after_stuck': round(self.slips_after_stuck, 4),
