@@ -53,10 +53,14 @@ SATURATED = (0.5, 99.5)
 
 @dataclass
 class StaleRows:
-    """Which rows were held, how many, and in how many runs."""
+    """Which rows were held (a mask over the record), how many, and in how many runs."""
 
     held: np.ndarray
-    runs: int
+
+    @property
+    def runs(self) -> int:
+        """Return the number of runs of consecutive held rows."""
+        return len(_runs(self.held)[0])
 
     @property
     def count(self) -> int:
@@ -114,11 +118,11 @@ def stale_rows(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None = None) -> 
     op, pv = np.asarray(op, float), np.asarray(pv, float)
     held = np.zeros(len(op), bool)
     if len(op) < 3:
-        return StaleRows(held, 0)
+        return StaleRows(held)
     same_op, same_pv = np.diff(op) == 0.0, np.diff(pv) == 0.0
     moved = ~same_op
     if not moved.any() or np.mean(same_pv[moved]) > FINE_GRAINED:
-        return StaleRows(held, 0)
+        return StaleRows(held)
     # An OP standing at its limit repeats for a reason (saturation), and a
     # frozen transmitter may happen to stand still with it.
     free = (op[1:] > SATURATED[0]) & (op[1:] < SATURATED[1])
@@ -126,7 +130,7 @@ def stale_rows(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None = None) -> 
     if sp is not None:
         same &= np.diff(np.asarray(sp, float)) == 0.0
     held[1:] = same
-    return StaleRows(held, len(_runs(held)[0]))
+    return StaleRows(held)
 
 
 def drop_held(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None = None) -> tuple:
