@@ -233,6 +233,13 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     procs = Processes(work)
     sim_arg = ['-p', f'use_sim_time:={"true" if sim else "false"}']
     supervising = not sim and realtime_priority > 0 and _supervise(realtime_priority + 1)
+    # Ctrl-C and SIGTERM are noted and acted on between two polls, never inside
+    # one: a KeyboardInterrupt raised in Popen.poll between taking its waitpid
+    # lock and the try that frees it leaves the lock taken, and the stop's
+    # wait() then blocks on it for good (a CI run hung that way, no node stopped).
+    held = HeldSignals()
+    procs._held = held
+    held.hold()
     try:
         if record:
             procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
@@ -255,6 +262,8 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
             procs.start('sim_clock', node_command('sim_clock', namespace, params), env)
         while True:
             time.sleep(0.1)
+            if held.got:
+                raise Terminated if held.got.pop(0) == signal.SIGTERM else KeyboardInterrupt
             bad = procs.failed()
             # A node that started, ran and died (killed, crashed) is restarted; one that
             # fails at once (bad parameters) would only fail again.
