@@ -95,6 +95,10 @@ class Processes:
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.procs = {}
         self.started, self.commands = {}, {}
+        # Held by run_loop from the first node started, and by stop() from the first
+        # stop to the last: between two calls (loop nodes, then the recorder) a
+        # KeyboardInterrupt would skip the recorder's stop.
+        self.held = HeldSignals()
 
     def start(self, name, cmd, env):
         log = open(self.log_dir / f'{name}.log', 'ab')
@@ -132,10 +136,7 @@ class Processes:
         back until every node of the loop has exited, then delivered: it cannot
         leave a node running or a bag unfinished.
         """
-        # Held from the first stop to the last: between two calls (loop nodes, then the
-        # recorder) a KeyboardInterrupt would skip the recorder's stop.
-        held = getattr(self, '_held', None) or HeldSignals()
-        self._held = held
+        held = self.held
         held.hold()
         try:
             for name in names:
@@ -237,8 +238,7 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     # one: a KeyboardInterrupt raised in Popen.poll between taking its waitpid
     # lock and the try that frees it leaves the lock taken, and the stop's
     # wait() then blocks on it for good (a CI run hung that way, no node stopped).
-    held = HeldSignals()
-    procs._held = held
+    held = procs.held
     held.hold()
     try:
         if record:

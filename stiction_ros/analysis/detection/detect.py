@@ -17,6 +17,7 @@ from stiction_ros.analysis.detection import cnn, model_file
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
+from stiction_ros.analysis.detection.stuck import record_row
 from stiction_ros.errors import DetectorFileError
 
 THRESHOLD = 0.5
@@ -82,7 +83,7 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
     rows dropped); None when they are the same.
     """
     def _t(k: int, ts: float) -> str:
-        return f'{(k if rows is None else rows[min(k, len(rows) - 1)]) * ts:.0f} s'
+        return f'{record_row(k, rows) * ts:.0f} s'
     out = []
     st = ev['stuck']
     for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:

@@ -31,6 +31,17 @@ JUMP_SIGMAS = 6.0    # a slip moves the proxy this many sigmas within SMOOTH sam
 SP_QUIET = 30        # samples after a set-point step in which a PV jump is no slip
 
 
+def record_row(k: int, rows: np.ndarray | None) -> int:
+    """
+    Return the row of the record as given that sample ``k`` of the read signal came from.
+
+    ``rows`` lists, for each sample read, its row in the record (held rows
+    dropped before reading); None when they are the same.  An end index one
+    past the last sample maps to the last row.
+    """
+    return int(k if rows is None else rows[min(k, len(rows) - 1)])
+
+
 @dataclass
 class StuckResult:
     """Stuck periods and slips of one record, with the figures the detector uses."""
@@ -58,8 +69,7 @@ class StuckResult:
         were dropped before reading); None when they are the same.
         """
         def s(k):
-            return round(float(k if rows is None else rows[min(k, len(rows) - 1)])
-                         * sample_time, 1)
+            return round(record_row(k, rows) * sample_time, 1)
         return {'stuck_periods_s': [[s(a), s(b), round(float(t), 4)]
                                     for a, b, t in self.stuck[:20]],
                 'slips_s': [[s(k), round(float(z), 1)] for k, z in self.slips[:20]],
