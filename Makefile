@@ -54,10 +54,11 @@ detector: venv
 
 # Retrain the detector's 1-D CNN (stiction_ros/resources/stiction_cnn.npz) on its own
 # simulated corpus, about 25 min on 2 cores; needs PyTorch (CPU), installed here.
+# Trains on a CUDA GPU when PyTorch sees one (make cnn CNN_ARGS='--jobs 16 --seeds 300000').
 # Then `make detector`: the network's logit is one of the detector's figures.
 cnn: venv
 	$(PY) -m pip install --quiet -r requirements/train.txt
-	$(PY) -m stiction_ros.cli.cnn
+	$(PY) -m stiction_ros.cli.cnn $(CNN_ARGS)
 
 test: venv
 	$(PY) -m pytest -q test

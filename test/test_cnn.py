@@ -152,6 +152,17 @@ def test_numpy_gives_the_logit_pytorch_gives_for_the_same_weights():
         assert abs(ref - m.logit(x, integ)) < 1e-4
 
 
+def test_the_training_windows_are_the_corpus_slices_they_start_at():
+    torch = pytest.importorskip('torch')   # requirements/train.txt; CI runs without it
+    from stiction_ros.analysis.detection.cnn_train import cut_windows
+    x = np.random.default_rng(4).normal(size=(cnn.N_CHANNELS, 3000)).astype(np.float32)
+    starts = np.array([0, 17, 2499, 1200])
+    got = cut_windows(torch.from_numpy(x), starts, 500).numpy()
+    want = np.stack([x[:, s:s + 500] for s in starts])
+    assert got.shape == (4, cnn.N_CHANNELS, 500)
+    np.testing.assert_array_equal(got, want)
+
+
 def test_a_dilation_too_large_to_run_is_refused(tmp_path):
     with np.load(cnn.DEFAULT_PATH) as z:
         a = {k: z[k] for k in cnn.ARRAYS}

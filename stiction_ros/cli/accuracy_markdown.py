@@ -32,7 +32,14 @@ def _cnn_line(meta: dict | None) -> list:
     return [f'- The detector\'s 1-D CNN (`make cnn`): {meta.get("records", "-")} simulated '
             f'records of seeds {seeds[0]}-{seeds[1] - 1 if isinstance(seeds[1], int) else "-"}, '
             f'{fig.get("epochs", "-")} epochs in {fig.get("train_s", "-")} s (PyTorch '
-            f'{fig.get("torch", "-")}, {fig.get("torch_threads", "-")} threads).']
+            f'{fig.get("torch", "-")}, {_where(fig)}).']
+
+
+def _where(fig: dict) -> str:
+    # Networks before 2026-11-27 were trained on the CPU and kept only the thread count.
+    if 'device' in fig:
+        return str(fig['device'])
+    return f'cpu, {fig.get("torch_threads", "-")} threads'
 
 
 def markdown(study: dict) -> str:

@@ -1,7 +1,8 @@
 """
-Train the detector's 1-D CNN on simulated loops (``make cnn``; needs PyTorch, CPU).
+Train the detector's 1-D CNN on simulated loops (``make cnn``; needs PyTorch).
 
     python -m stiction_ros.cli.cnn [--out FILE] [--seeds N] [--epochs E] [--jobs J]
+                                   [--batch B] [--device cpu|cuda]
 
 Simulates the network's own corpus (seeds from 2000000, never used by the
 detector's training, calibration or scoring sets), trains the network and
@@ -24,14 +25,18 @@ from stiction_ros.cli.text import description, pipe_safe
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    from stiction_ros.analysis.detection.cnn_train import CORPUS, EPOCHS
+    from stiction_ros.analysis.detection.cnn_train import BATCH, CORPUS, EPOCHS
     p = argparse.ArgumentParser(prog='stiction-cnn', description=description(__doc__))
     p.add_argument('--out', default=str(cnn.DEFAULT_PATH),
                    help='weights file to write (default: the shipped one)')
     p.add_argument('--seeds', type=int, default=len(CORPUS),
                    help=f'corpus seeds from {CORPUS.start} (about 80 %% become records)')
     p.add_argument('--epochs', type=int, default=EPOCHS)
-    p.add_argument('--jobs', type=int, default=min(os.cpu_count() or 1, 2))
+    p.add_argument('--jobs', type=int, default=min(os.cpu_count() or 1, 2),
+                   help='processes simulating the corpus')
+    p.add_argument('--batch', type=int, default=BATCH, help='records a training step')
+    p.add_argument('--device', choices=('cpu', 'cuda'),
+                   help='where to train (default: a CUDA GPU if PyTorch sees one)')
     return p
 
 
@@ -39,8 +44,9 @@ def parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
-    if args.seeds < 200 or args.epochs < 1:
-        print('stiction-cnn: error: at least 200 seeds and 1 epoch', file=sys.stderr)
+    if args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1:
+        print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1 and 1 job',
+              file=sys.stderr)
         return 2
     # Only looked up here: a parent holding torch's thread pool makes the
     # corpus workers it forks ten times slower.
@@ -59,7 +65,7 @@ def main(argv=None) -> int:
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')
     check = corpus(dataset.CALIBRATION, args.jobs, say)
-    net, figures = train_cnn(data, check, args.epochs, say)
+    net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device)
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
             'corpus_seeds': [seeds.start, seeds.stop], 'records': int(len(data['y'])),
             'sticky_share': round(float(data['y'].mean()), 4),

@@ -1,11 +1,13 @@
 """
 Train the detector's 1-D CNN (:mod:`cnn`) on simulated loops and export it as arrays.
 
-Only ``make cnn`` imports this module: it needs PyTorch (CPU), which neither
-the analyzer nor the tests do.  The corpus is drawn like the detector's
-training set (``stiction_ros.sim.corpus``) from its own seed range, which
-the boosted trees' training, calibration and scoring sets never touch, so
-the network's logit on those sets is an honest out-of-sample figure.
+Only ``make cnn`` imports this module: it needs PyTorch, which neither the
+analyzer nor the tests do.  It trains on a CUDA GPU when PyTorch sees one
+and on the CPU otherwise; the NumPy export reads the same either way.  The
+corpus is drawn like the detector's training set (``stiction_ros.sim.corpus``)
+from its own seed range, which the boosted trees' training, calibration and
+scoring sets never touch, so the network's logit on those sets is an honest
+out-of-sample figure.
 Records left out of the detector's sets (hidden stiction, not judgeable)
 are left out here too.
 """
@@ -25,6 +27,7 @@ HIDDEN = 32
 EPOCHS = 10
 CROP = 500
 BATCH = 64
+PEAK_LR = 2e-3
 SEED = 0
 
 
@@ -99,66 +102,99 @@ def to_model(net, meta: dict) -> CnnModel:
                     sd['fc2.weight'], sd['fc2.bias'], meta)
 
 
+def _device(name: str | None = None):
+    import torch
+    if name:
+        return torch.device(name)
+    return torch.device('cuda' if torch.cuda.is_available() else 'cpu')
+
+
 def _logits(net, data: dict) -> np.ndarray:
     import torch
+    dev = next(net.parameters()).device
     out = np.zeros(len(data['y']))
     net.eval()
     with torch.no_grad():
         for i in range(len(out)):
             x = torch.from_numpy(data['x'][:, data['off'][i]:data['off'][i + 1]])[None]
-            out[i] = net(x, torch.tensor([float(data['integ'][i])])).item()
+            out[i] = net(x.to(dev), torch.tensor([float(data['integ'][i])], device=dev)).item()
     net.train()
     return out
 
 
-def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print):
+def cut_windows(xt, starts: np.ndarray, width: int = CROP):
+    """
+    Return the windows ``xt[:, s:s + width]`` for each start, shape (starts, channels, width).
+
+    One gather on ``xt``'s device: the corpus stays there and only the
+    starts travel each step.
+    """
+    import torch
+    cols = torch.from_numpy(np.asarray(starts)).to(xt.device)[:, None] + torch.arange(
+        width, device=xt.device)
+    return xt[:, cols].permute(1, 0, 2)
+
+
+def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print,
+              batch: int = BATCH, device: str | None = None):
     """
     Return the trained torch network and its figures.
 
-    Adam under a one-cycle learning rate (peak 2e-3), binary cross-entropy
-    with the sticky class weighted to balance, random windows of ``CROP``
-    samples.  ``check``: a held-out set whose balanced accuracy is reported
-    after each epoch (reported only; nothing is chosen on it).
+    Adam under a one-cycle learning rate (peak ``PEAK_LR``), binary
+    cross-entropy with the sticky class weighted to balance, random windows
+    of ``CROP`` samples, ``batch`` records a step.  The corpus is copied to
+    ``device`` once (default: a CUDA GPU if there is one) and the windows
+    are cut there.  ``check``: a held-out set whose balanced accuracy is
+    reported after each epoch (reported only; nothing is chosen on it).
     """
     import torch
     from torch import nn
     torch.manual_seed(SEED)
     rng = np.random.default_rng(SEED)
-    net = _network()
+    dev = _device(device)
+    net = _network().to(dev)
     x, off, y, integ = data['x'], data['off'], data['y'], data['integ']
     n = len(y)
-    if n < BATCH or y.all() or not y.any():
+    if n < batch or y.all() or not y.any():
         raise ValueError(f'{n} records ({int(y.sum())} sticky): training needs at least '
-                         f'{BATCH} records and both labels')
+                         f'{batch} records and both labels')
+    xt = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32)).to(dev)
+    yt = torch.from_numpy(y.astype(np.float32)).to(dev)
+    it = torch.from_numpy(integ.astype(np.float32)).to(dev)
     opt = torch.optim.Adam(net.parameters(), 1e-3)
-    steps = epochs * (n // BATCH)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, 2e-3, total_steps=steps)
-    lossf = nn.BCEWithLogitsLoss(pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1)))
+    steps = epochs * (n // batch)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, PEAK_LR, total_steps=steps)
+    lossf = nn.BCEWithLogitsLoss(
+        pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1), device=dev))
     t0, history = time.perf_counter(), []
     for epoch in range(epochs):
         perm, total = rng.permutation(n), 0.0
-        for b in range(n // BATCH):
-            idx = perm[b * BATCH:(b + 1) * BATCH]
-            starts = [off[i] + rng.integers(0, off[i + 1] - off[i] - CROP + 1) for i in idx]
-            xb = torch.from_numpy(np.stack([x[:, s:s + CROP] for s in starts]))
-            loss = lossf(net(xb, torch.from_numpy(integ[idx].astype(np.float32))),
-                         torch.from_numpy(y[idx].astype(np.float32)))
+        for b in range(n // batch):
+            idx = perm[b * batch:(b + 1) * batch]
+            # One draw per record, in order, as the shipped network was trained.
+            starts = np.array([off[i] + rng.integers(0, off[i + 1] - off[i] - CROP + 1)
+                               for i in idx])
+            xb = cut_windows(xt, starts)
+            ib = torch.from_numpy(idx).to(dev)
+            loss = lossf(net(xb, it[ib]), yt[ib])
             opt.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(net.parameters(), 1.0)
             opt.step()
             sched.step()
             total += loss.item()
-        line = f'  epoch {epoch + 1}/{epochs}: loss {total / (n // BATCH):.4f}'
+        line = f'  epoch {epoch + 1}/{epochs}: loss {total / (n // batch):.4f}'
         if check is not None:
             lg = _logits(net, check)
             ba = 0.5 * ((lg[check['y']] > 0).mean() + (lg[~check['y']] <= 0).mean())
             history.append(round(float(ba), 4))
             line += f', held-out balanced accuracy {ba:.4f}'
         say(f'{line} ({time.perf_counter() - t0:.0f} s)')
-    return net, {'epochs': epochs, 'train_s': round(time.perf_counter() - t0, 1),
+    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': PEAK_LR,
+                 'train_s': round(time.perf_counter() - t0, 1),
                  'check_balanced_accuracy': history, 'torch': torch.__version__,
-                 'torch_threads': torch.get_num_threads()}
+                 'device': (torch.cuda.get_device_name(dev) if dev.type == 'cuda'
+                            else f'cpu, {torch.get_num_threads()} threads')}
 
 
 def export_error(net, model: CnnModel, data: dict, count: int = 50) -> float:
