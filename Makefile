@@ -60,8 +60,12 @@ cnn: venv
 	$(PY) -m pip install --quiet -r requirements/train.txt
 	$(PY) -m stiction_ros.cli.cnn $(CNN_ARGS)
 
+# Two workers (pytest-xdist), a test file whole in one, each on its own ROS domain
+# (test/conftest.py): the nodes the tests start mostly wait, so two files at once
+# fit on 2 cores.
+TEST_JOBS ?= 2
 test: venv
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile test
 
 # The input fuzz suite with fresh random inputs, 1 500 per test (CI runs 120, always the same).
 fuzz: venv

@@ -1,5 +1,6 @@
 """Test-wide settings: DDS stays on this machine, each run on its own domain."""
 
+from collections import Counter
 import os
 
 import pytest
@@ -9,6 +10,11 @@ import pytest
 # parallel runs on the same machine do not see each other.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+# Under pytest-xdist each worker inherits the run's domain from the controller;
+# worker gwN moves N domains on, so two workers' nodes never meet either.
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
+if _WORKER.startswith('gw') and _WORKER[2:].isdigit():
+    os.environ['ROS_DOMAIN_ID'] = str((int(os.environ['ROS_DOMAIN_ID']) + int(_WORKER[2:])) % 102)
 os.environ.setdefault('MPLBACKEND', 'Agg')
 
 
@@ -33,15 +39,42 @@ def report_pages(tmp_path_factory):
     return write_pages(tmp_path_factory.mktemp('report_pages'))
 
 
-def pytest_terminal_summary(terminalreporter):
-    """Say how many inputs the fuzz suite tried, and how each ended."""
+# The fuzz counts of every xdist worker, summed in the controller.
+_FUZZ = {'tried': Counter(), 'outcomes': Counter()}
+
+
+def _fuzz_counts():
     import sys
     fuzz = sys.modules.get('test_fuzz_inputs')
-    if fuzz is None or not fuzz.TRIED:
+    if fuzz is None:
+        return Counter(), Counter()
+    return fuzz.TRIED, fuzz.OUTCOMES
+
+
+def pytest_sessionfinish(session):
+    """On an xdist worker: hand its fuzz counts to the controller."""
+    out = getattr(session.config, 'workeroutput', None)
+    if out is not None:
+        tried, outcomes = _fuzz_counts()
+        out['fuzz_tried'], out['fuzz_outcomes'] = dict(tried), dict(outcomes)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """In the xdist controller: add a finished worker's fuzz counts."""
+    out = getattr(node, 'workeroutput', {})
+    _FUZZ['tried'].update(out.get('fuzz_tried', {}))
+    _FUZZ['outcomes'].update(out.get('fuzz_outcomes', {}))
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Say how many inputs the fuzz suite tried, and how each ended."""
+    tried, outcomes = _fuzz_counts()
+    tried, outcomes = tried + _FUZZ['tried'], outcomes + _FUZZ['outcomes']
+    if not tried:
         return
-    total = sum(fuzz.TRIED.values())
-    terminalreporter.write_line(f'fuzz: {total} inputs tried')
-    for kind, n in sorted(fuzz.TRIED.items()):
-        ends = ', '.join(f'{fuzz.OUTCOMES[f"{kind}: {how}"]} {how}s'
+    terminalreporter.write_line(f'fuzz: {sum(tried.values())} inputs tried')
+    for kind, n in sorted(tried.items()):
+        ends = ', '.join(f'{outcomes[f"{kind}: {how}"]} {how}s'
                          for how in ('result', 'one-line error'))
         terminalreporter.write_line(f'  {kind}: {n} ({ends})')
