@@ -98,7 +98,11 @@ def read_three_ways(bag):
         summary = reader.get_summary()
         assert summary is not None, f'{mcap}: no summary (the file was not finished)'
         stamps = {}
-        for _, channel, message in reader.iter_messages():
+        # In the order written, as read_bag gives them: a message's log time is its DDS
+        # receive stamp, and under load the recorder can take two messages of one topic
+        # in another order than those stamps say (0.4 ms apart, with two copies of this
+        # file running at once).
+        for _, channel, message in reader.iter_messages(log_time_order=False):
             stamps.setdefault(channel.topic, []).append(message.publish_time)
     # A topic subscribed to but never sent on (held_inputs, normally) has a channel only.
     counts = {channel.topic: summary.statistics.channel_message_counts.get(cid, 0)
@@ -348,3 +352,28 @@ def catches(pid, signum):
         return False
     mask = int(next(x for x in status.splitlines() if x.startswith('SigCgt:')).split()[1], 16)
     return bool(mask >> (signum - 1) & 1)
+
+
+@pytest.mark.parametrize('status', [0, 3])
+def test_a_teardown_that_stalls_ends_with_the_runs_status_and_the_stacks(status):
+    # What a stalled DDS teardown leaves: a process whose nodes closed but that does not
+    # end.  The watchdog ends it with the status the run had, and says why.
+    code = ('import time\nfrom stiction_ros.nodes.run import end_teardown_within\n'
+            f'end_teardown_within(0.3, "plant", [{status}])\ntime.sleep(30)\n')
+    t0 = time.monotonic()
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=20)
+    assert done.returncode == status
+    assert time.monotonic() - t0 < 15.0
+    assert 'plant: DDS teardown still running 0.3 s after the node closed' in done.stderr
+    assert 'time.sleep' in done.stderr or 'line 4' in done.stderr   # the main thread's stack
+
+
+def test_a_teardown_that_ends_in_time_keeps_the_process():
+    code = ('import time\nfrom stiction_ros.nodes.run import end_teardown_within\n'
+            't = end_teardown_within(0.3, "plant", [0])\nt.cancel()\ntime.sleep(0.8)\n'
+            'print("still here")\n')
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=20)
+    assert done.returncode == 0 and 'still here' in done.stdout
+    assert 'DDS teardown' not in done.stderr

@@ -15,13 +15,22 @@ that only notes the signal (rclpy's handlers chain to it), and ignores both
 signals from the first step of the shutdown on.  A signal during start-up is
 noted too, and the node stops as soon as it exists.
 
+Once the nodes are closed (their work, the bag included, is done), what is
+left is DDS's teardown, which has been seen to stall under load: a plant,
+its summary printed, still running 30 s after the stop.  A watchdog
+(:func:`end_teardown_within`) then ends the process with the run's status
+after ``TEARDOWN_S``, with every thread's stack in the log, before a
+launcher's SIGKILL would take the status away.
+
 A node that cannot start prints one line saying why and exits 2.
 """
 
+import faulthandler
 import gc
 import os
 import signal
 import sys
+import threading
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
@@ -33,6 +42,9 @@ from stiction_ros.models.base import ModelError
 from stiction_ros.nodes.sampled import StartupError
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# Below ros2 launch's 5 s between its SIGINT and its SIGTERM (which a closing node
+# ignores), and its SIGKILL 5 s after that; a teardown takes well under 1 s.
+TEARDOWN_S = 3.0
 
 
 class StopRequest:
@@ -141,13 +153,41 @@ def run(factory, args=None, prog='node'):
     finally:
         ignore_stop_signals()
         nodes = node if isinstance(node, list) else [node]
+        status = [code]
         try:
             _close_all(nodes)
+        except BaseException:
+            status[0] = 1
+            raise
         finally:
+            watchdog = end_teardown_within(TEARDOWN_S, prog, status)
             for one in nodes:
                 one.destroy_node()
             rclpy.try_shutdown()
+            watchdog.cancel()
     return code
+
+
+def end_teardown_within(seconds: float, prog: str, status: list) -> threading.Timer:
+    """
+    Start a timer that ends the process with ``status[0]`` if teardown outlasts ``seconds``.
+
+    It prints one line and every thread's stack to stderr first.  The caller
+    cancels it when the teardown is done.  A teardown holding the GIL would
+    also hold this timer back; the interpreter's exit would then be the next
+    place it can fire.
+    """
+    def _end():
+        print(f'{prog}: DDS teardown still running {seconds:g} s after the node closed; '
+              f'exiting without it (status {status[0]}); stacks follow', file=sys.stderr,
+              flush=True)
+        faulthandler.dump_traceback(sys.stderr, all_threads=True)
+        sys.stdout.flush()
+        os._exit(status[0])
+    timer = threading.Timer(seconds, _end)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def _close_all(nodes):
