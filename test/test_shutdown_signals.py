@@ -360,13 +360,12 @@ def test_a_teardown_that_stalls_ends_with_the_runs_status_and_the_stacks(status)
     # end.  The watchdog ends it with the status the run had, and says why.
     code = ('import time\nfrom stiction_ros.nodes.run import end_teardown_within\n'
             f'end_teardown_within(0.3, "plant", [{status}])\ntime.sleep(30)\n')
-    t0 = time.monotonic()
+    # Left to itself the process would sleep 30 s; run's timeout fails the test first.
     done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=20)
     assert done.returncode == status
-    assert time.monotonic() - t0 < 15.0
     assert 'plant: DDS teardown still running 0.3 s after the node closed' in done.stderr
-    assert 'time.sleep' in done.stderr or 'line 4' in done.stderr   # the main thread's stack
+    assert 'line 4 in <module>' in done.stderr     # the main thread's stack, in the sleep
 
 
 def test_a_teardown_that_ends_in_time_keeps_the_process():

@@ -173,9 +173,8 @@ def end_teardown_within(seconds: float, prog: str, status: list) -> threading.Ti
     Start a timer that ends the process with ``status[0]`` if teardown outlasts ``seconds``.
 
     It prints one line and every thread's stack to stderr first.  The caller
-    cancels it when the teardown is done.  A teardown holding the GIL would
-    also hold this timer back; the interpreter's exit would then be the next
-    place it can fire.
+    cancels it when the teardown is done.  A teardown that stalls while
+    holding the GIL holds this timer back as well.
     """
     def _end():
         print(f'{prog}: DDS teardown still running {seconds:g} s after the node closed; '
