@@ -83,6 +83,7 @@ class Probe:
         self.executor.add_node(self.node)
         self.received = {}
         self.pubs = {}
+        self.renewed = {}
         self._thread = threading.Thread(target=self.executor.spin, daemon=True)
         self._thread.start()
 
@@ -147,37 +148,44 @@ class Probe:
         assert client.wait_for_services(timeout), f'no parameter services on {node_name}'
         return client
 
-    @staticmethod
-    def call(request, timeout=10.0, tries=3):
+    def call(self, client, request, timeout=10.0, tries=3):
         """
-        Send ``request()`` (it returns a service future) and return its result.
+        Send ``request(client)`` (it returns a service future) and return its result.
 
         A response is lost when the server answers before it has matched this
         client's response reader (a known DDS race, ros2/rmw_fastrtps#390); the
-        request is then sent again, as a user would repeat a ``ros2 param`` call.
-        Parameter requests are idempotent, so a repeat changes nothing.
+        request is then sent again, as a user would repeat a ``ros2 param`` call,
+        from a new client: once, three tries of one client in a row went
+        unanswered, so the retry gets new request and response endpoints, and
+        later calls to that node use them too.  Parameter requests are
+        idempotent, so a repeat changes nothing.
         """
+        name = client.remote_node_name
         for attempt in range(tries):
-            future = request()
+            client = self.renewed.get(name, client)
+            future = request(client)
             end = time.monotonic() + timeout
             while not future.done() and time.monotonic() < end:
                 time.sleep(0.01)
             if future.done():
                 return future.result()
-            print(f'service call unanswered after {timeout} s (try {attempt + 1}/{tries})',
-                  file=sys.stderr)
-        raise AssertionError(f'service call timed out {tries} times')
+            print(f'service call to {name} unanswered after {timeout} s (try {attempt + 1}/'
+                  f'{tries}); next from a new client', file=sys.stderr)
+            fresh = AsyncParameterClient(self.node, name)
+            if fresh.wait_for_services(timeout):
+                self.renewed[name] = fresh
+        raise AssertionError(f'service call to {name} timed out {tries} times')
 
     def set_params(self, client, atomically=False, **values):
         """Set parameters through the standard service; return the SetParametersResult list."""
         params = [Parameter(k, value=v) for k, v in values.items()]
         if atomically:
-            return [self.call(lambda: client.set_parameters_atomically(params)).result]
-        return self.call(lambda: client.set_parameters(params)).results
+            return [self.call(client, lambda c: c.set_parameters_atomically(params)).result]
+        return self.call(client, lambda c: c.set_parameters(params)).results
 
     def get_params(self, client, *names):
         """Return the current values of parameters through the standard service."""
-        res = self.call(lambda: client.get_parameters(list(names)))
+        res = self.call(client, lambda c: c.get_parameters(list(names)))
         return [Parameter.from_parameter_msg(ParamMsg(name=n, value=v)).value
                 for n, v in zip(names, res.values)]
 

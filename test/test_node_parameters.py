@@ -28,7 +28,7 @@ def valve(probe, tmp_path):
 
 def test_descriptors_carry_ranges_fixed_values_and_allowed_values(probe, valve):
     _, client = valve
-    res = probe.call(lambda: client.describe_parameters(['S', 'sample_time', 'model', 'Fs']))
+    res = probe.call(client, lambda c: c.describe_parameters(['S', 'sample_time', 'model', 'Fs']))
     s, ts, model, fs = res.descriptors
     assert s.type == ParameterType.PARAMETER_DOUBLE and s.description
     assert (s.floating_point_range[0].from_value, s.floating_point_range[0].to_value) == (0, 100)

@@ -57,13 +57,14 @@ def in_file(path):
 
 def load(probe, client, path):
     """Do what ``ros2 param load NODE PATH`` does; return the results."""
-    return probe.call(lambda: client.load_parameter_file(str(path), use_wildcard=True)).results
+    return probe.call(client,
+                      lambda c: c.load_parameter_file(str(path), use_wildcard=True)).results
 
 
 def dump(probe, client, node, path):
     """Write every parameter of the node as ``ros2 param dump`` does; return them flat."""
-    names = sorted(probe.call(lambda: client.list_parameters([], 0)).result.names)
-    res = probe.call(lambda: client.get_parameters(names))
+    names = sorted(probe.call(client, lambda c: c.list_parameters([], 0)).result.names)
+    res = probe.call(client, lambda c: c.get_parameters(names))
     flat = {n: plain(Parameter.from_parameter_msg(ParamMsg(name=n, value=v)).value)
             for n, v in zip(names, res.values) if n not in ROS_READ_ONLY}
     path.write_text(yaml.dump({node: {'ros__parameters': nest(flat)}},

@@ -49,8 +49,8 @@ def nodes(probe, tmp_path_factory):
 
 
 def describe(probe, client):
-    names = probe.call(lambda: client.list_parameters([], 0)).result.names
-    res = probe.call(lambda: client.describe_parameters(list(names)))
+    names = probe.call(client, lambda c: c.list_parameters([], 0)).result.names
+    res = probe.call(client, lambda c: c.describe_parameters(list(names)))
     return {d.name: d for d in res.descriptors if d.name not in ROS_OWN}
 
 
