@@ -31,6 +31,36 @@ def test_cannot_tell_reasons():
     assert j.code == 'under_sampled' and '180 s' in j.reason
 
 
+def test_a_loop_whose_op_does_not_act_on_its_error_cannot_be_told():
+    rec = _flow_loop({'model': 'linear'}, 7)
+    assert judgeable(rec['op'], rec['pv'], 1.0, rec['sp']).ok
+    # An override selector hands the valve to another controller, which
+    # cycles it; this loop's PV follows the valve through a first-order lag
+    # and never comes near this loop's set point, five PV ranges away.
+    n = 900
+    op = 50 + 3 * np.sin(2 * np.pi * np.arange(n) / 300) + noisy(n, 3, 0.05)
+    pv = np.zeros(n)
+    for k in range(1, n):
+        pv[k] = 0.9 * pv[k - 1] + 0.1 * (op[k - 1] - 50)
+    pv += noisy(n, 4, 0.1)
+    far = np.full(n, pv.min() - 5 * np.ptp(pv))
+    assert judgeable(op, pv, 1.0).ok
+    j = judgeable(op, pv, 1.0, far)
+    assert j.code == 'not_in_control' and 'above the set point' in j.reason
+    d = detect(op, pv, far, 1.0)
+    assert d.answer == 'cannot tell' and d.probability is None
+    assert d.judge.code == 'not_in_control'
+    # A slow loop still approaching a far set point: the error keeps one sign
+    # and integral action drives OP one way, so it is a loop in control.
+    n = 600
+    ramp_op = np.linspace(30.0, 70.0, n) + noisy(n, 5, 0.05)
+    slow_pv = np.linspace(0.0, 1.0, n) + noisy(n, 6, 0.05)
+    assert judgeable(ramp_op, slow_pv, 1.0, np.full(n, 20.0)).ok
+    # OP at its limit most of the time is wind-up, the loop's own doing.
+    wound = np.where(np.arange(n) < 400, 100.0, 90.0 + noisy(n, 7))
+    assert judgeable(wound, slow_pv, 1.0, np.full(n, 20.0)).ok
+
+
 def test_period_sanity_rules():
     assert period_sanity(300.0, 10.0, 1000) == ''
     assert 'only 5.0 samples' in period_sanity(50.0, 10.0, 1000)

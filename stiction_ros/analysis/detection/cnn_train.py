@@ -39,7 +39,7 @@ def _record(seed: int):
     rec = simulate(sc)
     if sc.label and stiction_footprint(sc, rec) < MIN_FOOTPRINT:
         return None
-    if not judgeable(rec['op'], rec['pv'], sc.sample_time).ok:
+    if not judgeable(rec['op'], rec['pv'], sc.sample_time, rec['sp']).ok:
         return None
     return seed, channels(rec['op'], rec['pv'], rec['sp']), bool(sc.label), bool(sc.integrating)
 

@@ -74,7 +74,7 @@ def featurize_seed(seed: int) -> tuple:
     op, pv, sp, held = drop_held(rec['op'], rec['pv'], rec['sp'])
     judge = holds_judgeable(held, sc.sample_time)
     if judge.ok:
-        judge = judgeable(op, pv, sc.sample_time)
+        judge = judgeable(op, pv, sc.sample_time, sp)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False
     vec, ev = extract(op, pv, sp, sc.sample_time, sc.integrating)

@@ -12,7 +12,14 @@ deliberately plain, each with a reason an engineer can act on:
   never asked to move (manual mode, saturated output);
 * under-sampled: the loop's own cycle is shorter than ``MIN_PERIOD_SAMPLES``
   samples, or alternates sample to sample, so stick-slip cannot be resolved
-  and any size estimate would be an alias.
+  and any size estimate would be an alias;
+* not in control: the set point lies farther from PV than PV's whole range,
+  on one side all record, while OP moves with no trend to speak of.  With
+  integral action an error of one sign drives OP one way until it saturates,
+  so this OP is not acting on this error (an override selector chose another
+  controller, the output tracks, or the SP column is another loop's): reading
+  the record as a closed loop would judge a valve by a controller that is not
+  driving it.
 
 :func:`period_sanity` (in :mod:`stiction_ros.analysis.oscillation`) is the
 rule every oscillation-based signature obeys: a cycle shorter than
@@ -26,7 +33,7 @@ import numpy as np
 
 from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
 
-__all__ = ['cycle_judgeable', 'Judgeable', 'judgeable', 'lag1', 'MIN_PERIOD_SAMPLES',
+__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1', 'MIN_PERIOD_SAMPLES',
            'MIN_SAMPLES', 'period_sanity', 'robust_noise']
 
 MIN_SAMPLES = 200
@@ -37,6 +44,15 @@ RELATIVE_FLOOR = 1e-9
 MIN_OP_TRAVEL = 0.05
 # Lag-1 autocorrelation below this means a cycle near the Nyquist frequency.
 ALTERNATING = -0.35
+# Not in control: |median(SP - PV)| at least this many times PV's range, the
+# error of one sign in at least ONE_SIGNED of the samples, OP at a limit in
+# less than half of them and its trend over the record under NET_OP of its range.  No
+# simulated record of 18 000 (training, calibration, scoring and CNN seeds)
+# comes near: the largest offset among one-signed errors is 0.61 ranges.
+SP_OUTSIDE = 1.0
+ONE_SIGNED = 0.99
+NET_OP = 0.5
+OP_LIMITS = (0.5, 99.5)
 
 
 @dataclass(frozen=True)
@@ -73,8 +89,13 @@ def lag1(x: np.ndarray) -> float:
     return float(np.dot(x[1:], x[:-1]) / den) if den > 0 else 0.0
 
 
-def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float) -> Judgeable:
-    """Return whether OP and PV (held, contiguous) can be judged for stiction, and why not."""
+def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
+              sp: np.ndarray | None = None) -> Judgeable:
+    """
+    Return whether OP and PV (held, contiguous) can be judged for stiction, and why not.
+
+    ``sp`` (the same samples, or None) adds the not-in-control check.
+    """
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
     n = len(pv)
@@ -98,6 +119,34 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float) -> Judgeable:
                          f'resolved; record at a shorter sample time')
     if float(np.std(d_pv)) == 0.0:
         return Judgeable(False, 'pv_constant', 'PV does not vary')
+    return in_control(op, pv, sp)
+
+
+def in_control(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Judgeable:
+    """Return whether OP can be acting on SP - PV at all (the not-in-control check)."""
+    if sp is None:
+        return Judgeable(True)
+    err = np.asarray(sp, dtype=np.float64) - pv
+    if not np.all(np.isfinite(err)):
+        return Judgeable(True)
+    offset = float(np.median(err))
+    one_signed = float(np.mean(np.sign(err) == np.sign(offset)))
+    span = float(np.ptp(pv))
+    at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+    # OP's trend over the record (least squares), which wind-up would make
+    # nearly all of its range.
+    t = np.arange(len(op), dtype=np.float64)
+    net = abs(float(np.polyfit(t, op, 1)[0])) * (len(op) - 1)
+    if (abs(offset) >= SP_OUTSIDE * span and one_signed >= ONE_SIGNED and at_limit < 0.5
+            and net < NET_OP * float(np.ptp(op))):
+        side = 'below' if offset > 0 else 'above'
+        return Judgeable(False, 'not_in_control',
+                         f'not in control: PV stays {side} the set point in '
+                         f'{100 * one_signed:.0f} % of the samples, {abs(offset):.3g} away '
+                         f"({abs(offset) / span:.1f} times PV's range), yet OP does not wind "
+                         f'up: OP is not acting on this error (an override or selector, '
+                         f"output tracking, or another loop's set point); check which "
+                         f'controller drives the valve')
     return Judgeable(True)
 
 
