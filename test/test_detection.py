@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stiction_ros.analysis.detection import detect, model_file
+from stiction_ros.analysis.detection import detect, load_model, model_file
 from stiction_ros.analysis.detection.resolve import (
     cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
 from stiction_ros.analysis.detection.stuck import stuck_periods
@@ -156,6 +156,21 @@ def test_exported_trees_score_exactly_as_scikit_learn(tmp_path):
     assert np.all(np.diff(p[order]) >= -1e-12)
 
 
+def test_the_trees_credit_their_score_to_the_figures_it_depends_on(tmp_path):
+    path, x, _ = _tiny_model(tmp_path)
+    m = model_file.load(path)
+    raw = m.raw_score(x)
+    parts = [m.contributions(row) for row in x]
+    # Each split's move is credited once: the parts add up to the score.
+    assert np.allclose([b + c.sum() for b, c in parts], raw, rtol=0, atol=1e-9)
+    # The label is made of a and b; c and d are noise the trees barely use.
+    mean_abs = np.mean([np.abs(c) for _, c in parts], axis=0)
+    assert min(mean_abs[:2]) > 3 * max(mean_abs[2:])
+    split_on = set(m.feature[m.is_leaf == 0])
+    for j in set(range(4)) - split_on:
+        assert all(c[j] == 0.0 for _, c in parts)
+
+
 def test_a_missing_or_damaged_model_file_is_a_clear_error(tmp_path):
     path, _, _ = _tiny_model(tmp_path)
     with pytest.raises(model_file.DetectorFileError, match='make detector'):
@@ -195,6 +210,13 @@ def test_a_missing_or_damaged_model_file_is_a_clear_error(tmp_path):
     model_file.save(nan_file, model_file.TreeModel(**{**m.__dict__, 'value': value}))
     with pytest.raises(model_file.DetectorFileError, match='NaN'):
         model_file.load(nan_file)
+    # A node no training record reached cannot weigh a path's credit.
+    count = m.count.copy()
+    count[0] = 0
+    empty = tmp_path / 'empty.npz'
+    model_file.save(empty, model_file.TreeModel(**{**m.__dict__, 'count': count}))
+    with pytest.raises(model_file.DetectorFileError, match='no training record'):
+        model_file.load(empty)
 
 
 def test_the_shipped_model_loads_and_matches_the_features():
@@ -202,6 +224,19 @@ def test_the_shipped_model_loads_and_matches_the_features():
     m = load_model()
     assert m.feature_names == FEATURE_NAMES
     assert 'no plant data' in m.meta['trained_on']
+
+
+def test_a_verdict_names_the_figures_the_trees_leaned_on():
+    rec = _flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.0}, 201)
+    d = detect(rec['op'], rec['pv'], rec['sp'], 1.0)
+    leaned = d.to_json()['leaned_on']
+    model = load_model()
+    # The score the parts add up to is the one the probability was read from.
+    assert np.isclose(np.interp(leaned['score'], model.calib_x, model.calib_y),
+                      d.probability, atol=0.02)
+    names = [c['feature'] for c in leaned['contributions']]
+    assert len(names) == 3 and set(names) <= set(d.features)
+    assert d.evidence[0].startswith('the learned detector leaned most on ' + names[0])
 
 
 def test_a_tree_that_points_back_is_refused_not_walked_forever(tmp_path):

@@ -23,6 +23,8 @@ from stiction_ros.errors import DetectorFileError
 THRESHOLD = 0.5
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
 VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
+# How many figures the evidence names as the ones the trees leaned on.
+LEANED_ON = 3
 
 
 @dataclass
@@ -147,6 +149,37 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     answer = 'stiction' if p >= THRESHOLD else 'no stiction'
     reason = (f'learned detector: probability of stiction {p:.2f} '
               f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
+    leaned = leaned_on(model, vec)
+    lines.insert(0, leaned_line(leaned))
     return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
                      ev['period_problem'], info,
-                     {'stuck': ev['stuck'].to_json(sample_time, rows), **holds})
+                     {'stuck': ev['stuck'].to_json(sample_time, rows), **holds,
+                      'leaned_on': leaned})
+
+
+def leaned_on(model: model_file.TreeModel, vec: np.ndarray, top: int = LEANED_ON) -> dict:
+    """
+    Return which figures moved the trees' score of ``vec`` most, and by how much.
+
+    ``contributions`` are in log-odds (the raw score): positive toward
+    stiction; ``start`` is the score of a record the trees know nothing
+    about (the training records' mean leaf) and ``score`` the record's.
+    """
+    bias, per = model.contributions(vec)
+    order = np.argsort(-np.abs(per))[:top]
+    x = np.ravel(vec)
+    return {'start': round(bias, 3), 'score': round(bias + float(per.sum()), 3),
+            'contributions': [{'feature': model.feature_names[i],
+                               'value': None if not np.isfinite(x[i]) else round(float(x[i]), 4),
+                               'log_odds': round(float(per[i]), 3)} for i in order]}
+
+
+def leaned_line(leaned: dict) -> str:
+    """Return the terminal sentence of :func:`leaned_on`."""
+    def one(c: dict) -> str:
+        value = 'missing' if c['value'] is None else f'{c["value"]:.3g}'
+        return f'{c["feature"]} = {value} ({c["log_odds"]:+.2f})'
+    parts = [one(c) for c in leaned['contributions']]
+    return (f'the learned detector leaned most on {", ".join(parts)} (log-odds toward '
+            f'stiction; its score {leaned["score"]:+.2f} from {leaned["start"]:+.2f} for a '
+            f'record it knows nothing about)')

@@ -3,8 +3,9 @@ The learned detector's file: gradient-boosted trees and their calibration, witho
 
 The classifier is trained with scikit-learn (``stiction_ros.analysis.detection.train``)
 but shipped as plain arrays in a NumPy ``.npz``: each tree's split feature,
-threshold, children, leaf value and where a missing value goes, plus the
-isotonic calibration map from raw score to probability.  Loading never
+threshold, children, leaf value, where a missing value goes and how many
+training records reached each node (for :meth:`TreeModel.contributions`), plus
+the isotonic calibration map from raw score to probability.  Loading never
 unpickles anything (the security test bans it) and needs no scikit-learn;
 :func:`load` checks every array's type, shape and cross-reference and a
 SHA-256 of the content, so a missing, truncated or edited file is a
@@ -12,6 +13,7 @@ SHA-256 of the content, so a missing, truncated or edited file is a
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 import hashlib
 import json
 from pathlib import Path
@@ -23,10 +25,11 @@ import numpy as np
 from stiction_ros.errors import DetectorFileError
 
 FORMAT = 'stiction_ros.detector'
-VERSION = 1
+# Version 2 (2026-11-27) added each node's training count.
+VERSION = 2
 ARRAYS = {'feature': np.int32, 'threshold': np.float64, 'left': np.int32, 'right': np.int32,
           'value': np.float64, 'missing_left': np.uint8, 'is_leaf': np.uint8,
-          'tree_start': np.int32, 'calib_x': np.float64, 'calib_y': np.float64}
+          'count': np.int64, 'tree_start': np.int32, 'calib_x': np.float64, 'calib_y': np.float64}
 DEFAULT_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_detector.npz'
 
 
@@ -43,6 +46,7 @@ class TreeModel:
     value: np.ndarray
     missing_left: np.ndarray
     is_leaf: np.ndarray
+    count: np.ndarray
     tree_start: np.ndarray
     calib_x: np.ndarray
     calib_y: np.ndarray
@@ -69,6 +73,45 @@ class TreeModel:
                 node[inner] = np.where(go_left, self.left[nd], self.right[nd])
             total += self.value[node]
         return total
+
+    @cached_property
+    def expected(self) -> np.ndarray:
+        """Return each node's mean leaf value over the training records that reached it."""
+        e = np.where(self.is_leaf == 1, self.value, 0.0)
+        # Children lie after their parent (checked on load): fill from the end.
+        for i in np.flatnonzero(self.is_leaf == 0)[::-1]:
+            cl, cr = self.count[self.left[i]], self.count[self.right[i]]
+            e[i] = (cl * e[self.left[i]] + cr * e[self.right[i]]) / (cl + cr)
+        return e
+
+    def contributions(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """
+        Return ``(bias, per_feature)`` of one row: how the raw score was reached.
+
+        Each split on a row's path moves the expected score from the node's
+        mean to the child's; the move is credited to the split's feature
+        (Saabas 2014).  ``bias + per_feature.sum()`` is :meth:`raw_score` of
+        the row, to rounding.
+        """
+        x = np.asarray(x, dtype=np.float64).ravel()
+        if x.size != len(self.feature_names):
+            raise ValueError(f'{x.size} features given, the model takes '
+                             f'{len(self.feature_names)}')
+        e, out = self.expected, np.zeros(x.size)
+        node = self.tree_start.astype(np.int64)
+        bias = self.baseline + float(e[node].sum())
+        while True:
+            inner = self.is_leaf[node] == 0
+            if not inner.any():
+                break
+            nd = node[inner]
+            xv = x[self.feature[nd]]
+            go_left = np.where(np.isnan(xv), self.missing_left[nd] == 1,
+                               xv <= self.threshold[nd])
+            child = np.where(go_left, self.left[nd], self.right[nd])
+            np.add.at(out, self.feature[nd], e[child] - e[nd])
+            node[inner] = child
+        return bias, out
 
     def probability(self, x: np.ndarray) -> np.ndarray:
         """Return the calibrated probability of stiction of each row of ``x``."""
@@ -98,7 +141,7 @@ def save(path: str | Path, model: TreeModel) -> None:
 
 def _check(a: dict, header: dict, path: Path) -> None:
     n = a['feature'].shape[0]
-    for k in ('threshold', 'left', 'right', 'value', 'missing_left', 'is_leaf'):
+    for k in ('threshold', 'left', 'right', 'value', 'missing_left', 'is_leaf', 'count'):
         if a[k].shape != (n,):
             raise DetectorFileError(f'{path}: array {k} has shape {a[k].shape}, expected ({n},)')
     inner = a['is_leaf'] == 0
@@ -115,6 +158,8 @@ def _check(a: dict, header: dict, path: Path) -> None:
     for child in (a['left'], a['right']):
         if np.any((child[inner] <= idx[inner]) | (child[inner] >= end[inner])):
             raise DetectorFileError(f'{path}: a tree node points back or outside its tree')
+    if np.any(a['count'] < 1):
+        raise DetectorFileError(f'{path}: a tree node reached by no training record')
     if not all(np.all(np.isfinite(a[k])) for k in ('value', 'calib_x', 'calib_y')):
         raise DetectorFileError(f'{path}: NaN or infinity in leaf values or calibration')
     cx, cy = a['calib_x'], a['calib_y']

@@ -47,7 +47,7 @@ def fit_calibration(raw: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndar
 def export(clf, feature_names, calib: tuple, meta: dict) -> TreeModel:
     """Return the :class:`TreeModel` of a fitted binary ``HistGradientBoostingClassifier``."""
     cols = {k: [] for k in ('feature', 'threshold', 'left', 'right', 'value',
-                            'missing_left', 'is_leaf')}
+                            'missing_left', 'is_leaf', 'count')}
     starts, offset = [], 0
     for per_iter in clf._predictors:
         nodes = per_iter[0].nodes
@@ -61,6 +61,7 @@ def export(clf, feature_names, calib: tuple, meta: dict) -> TreeModel:
         cols['value'].append(nodes['value'])
         cols['missing_left'].append(nodes['missing_go_to_left'])
         cols['is_leaf'].append(nodes['is_leaf'])
+        cols['count'].append(nodes['count'])
         offset += len(nodes)
     arr = {k: np.concatenate(v) for k, v in cols.items()}
     leaf = arr['is_leaf'] == 1
@@ -71,7 +72,8 @@ def export(clf, feature_names, calib: tuple, meta: dict) -> TreeModel:
                      arr['threshold'].astype(np.float64), arr['left'].astype(np.int32),
                      arr['right'].astype(np.int32), arr['value'].astype(np.float64),
                      arr['missing_left'].astype(np.uint8), arr['is_leaf'].astype(np.uint8),
-                     np.array(starts, dtype=np.int32), calib[0], calib[1], meta)
+                     arr['count'].astype(np.int64), np.array(starts, dtype=np.int32),
+                     calib[0], calib[1], meta)
 
 
 def train(x_train: np.ndarray, y_train: np.ndarray, x_cal: np.ndarray, y_cal: np.ndarray,
