@@ -50,6 +50,9 @@ def test_a_loop_whose_op_does_not_act_on_its_error_cannot_be_told():
     d = detect(op, pv, far, 1.0)
     assert d.answer == 'cannot tell' and d.probability is None
     assert d.judge.code == 'not_in_control'
+    # A few flagged set-point samples change nothing: the rest still show it.
+    far[::50] = np.nan
+    assert judgeable(op, pv, 1.0, far).code == 'not_in_control'
     # A slow loop still approaching a far set point: the error keeps one sign
     # and integral action drives OP one way, so it is a loop in control.
     n = 600

@@ -33,8 +33,8 @@ import numpy as np
 
 from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
 
-__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1', 'MIN_PERIOD_SAMPLES',
-           'MIN_SAMPLES', 'period_sanity', 'robust_noise']
+__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1',
+           'MIN_PERIOD_SAMPLES', 'MIN_SAMPLES', 'period_sanity', 'robust_noise']
 
 MIN_SAMPLES = 200
 # Distinct-value and spread floors that separate a frozen signal from a quiet one.
@@ -46,8 +46,8 @@ MIN_OP_TRAVEL = 0.05
 ALTERNATING = -0.35
 # Not in control: |median(SP - PV)| at least this many times PV's range, the
 # error of one sign in at least ONE_SIGNED of the samples, OP at a limit in
-# less than half of them and its trend over the record under NET_OP of its range.  No
-# simulated record of 18 000 (training, calibration, scoring and CNN seeds)
+# less than half of them and its trend over the record under NET_OP of its
+# range.  No simulated record of 18 000 (training, calibration, scoring and CNN seeds)
 # comes near: the largest offset among one-signed errors is 0.61 ranges.
 SP_OUTSIDE = 1.0
 ONE_SIGNED = 0.99
@@ -127,8 +127,11 @@ def in_control(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Judgeab
     if sp is None:
         return Judgeable(True)
     err = np.asarray(sp, dtype=np.float64) - pv
-    if not np.all(np.isfinite(err)):
+    known = np.isfinite(err)
+    if known.sum() < len(err) // 2:
         return Judgeable(True)
+    # A flagged SP sample says nothing either way; the rest still do.
+    err = err[known]
     offset = float(np.median(err))
     one_signed = float(np.mean(np.sign(err) == np.sign(offset)))
     span = float(np.ptp(pv))
