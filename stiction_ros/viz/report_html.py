@@ -168,6 +168,17 @@ def _hammerstein(ham: dict) -> list:
     return out
 
 
+def _leaned(leaned: dict) -> list:
+    rows = [[e(c['feature']), 'missing' if c['value'] is None else num(c['value']),
+             f'{c["log_odds"]:+.2f}'] for c in leaned.get('contributions', [])]
+    return ["<h2>What the detector's score rests on</h2>",
+            f'<p>The trees start from {leaned["start"]:+.2f} (log-odds of stiction, for a '
+            f'record they know nothing about) and reach {leaned["score"]:+.2f}; these figures '
+            f'moved the score most (docs/DETECTION.md, section 2, says what each one '
+            f'measures).</p>',
+            table(['figure', 'value', 'moved the score by'], rows)]
+
+
 def _figures(figures: list) -> list:
     out = ['<h2>Figures</h2>']
     for p in figures:
@@ -194,6 +205,8 @@ def render(report: dict, figures: list) -> str:
     if st.get('evidence'):
         parts += ['<h2>Evidence (which test saw what, and when)</h2><ul>',
                   *[f'<li>{clean(ev)}</li>' for ev in st['evidence']], '</ul>']
+    if (st.get('detector') or {}).get('leaned_on'):
+        parts += _leaned(st['detector']['leaned_on'])
     if report.get('fits'):
         parts += _fits(report)
     if st.get('oscillation'):

@@ -150,7 +150,8 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     reason = (f'learned detector: probability of stiction {p:.2f} '
               f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
     leaned = leaned_on(model, vec)
-    lines.insert(0, leaned_line(leaned))
+    # After a notable share of held rows, which says how much of the trend was read.
+    lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned))
     return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
                      ev['period_problem'], info,
                      {'stuck': ev['stuck'].to_json(sample_time, rows), **holds,
