@@ -41,7 +41,8 @@ def bench_detector(best_time, folder=LOOPS):
         vec, _ = extract(*args, integ)
         out['old_rule'].append(best_time(lambda: compute_signatures(*args, integrating=integ)))
         out['detector'].append(best_time(lambda: detect(*args, integ)))
-        out['model_only'].append(best_time(lambda: model.probability(vec), repeats=20))
+        logit = None if model.stack is None else 0.0
+        out['model_only'].append(best_time(lambda: model.probability(vec, logit), repeats=20))
         out['samples'].append(len(x['op']))
     return out
 

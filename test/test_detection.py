@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.detection import detect, load_model, model_file
+from stiction_ros.analysis.detection.detect import leaned_on
 from stiction_ros.analysis.detection.resolve import (
     cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
 from stiction_ros.analysis.detection.stuck import stuck_periods
@@ -238,8 +239,42 @@ def test_a_verdict_names_the_figures_the_trees_leaned_on():
     assert np.isclose(np.interp(leaned['score'], model.calib_x, model.calib_y),
                       d.probability, atol=0.02)
     names = [c['feature'] for c in leaned['contributions']]
-    assert len(names) == 3 and set(names) <= set(d.features)
+    assert len(names) == 3 and set(names) <= set(d.features) | {'cnn_large_logit'}
     assert d.evidence[0].startswith('the learned detector leaned most on ' + names[0])
+
+
+def test_a_stacked_detector_weighs_the_large_network_in(tmp_path):
+    path, x, _ = _tiny_model(tmp_path)
+    m = model_file.load(path)
+    w = [0.3, 0.5, 0.7]
+    stacked = model_file.TreeModel(**{**m.__dict__, 'meta': {**m.meta, 'stack': {'coef': w}}})
+    logit = np.linspace(-3, 3, len(x))
+    assert np.allclose(stacked.score(x, logit), 0.3 + 0.5 * m.raw_score(x) + 0.7 * logit)
+    with pytest.raises(ValueError, match='large network'):
+        stacked.probability(x)
+    # The parts of a stacked score still add up to it, the network one part.
+    leaned = leaned_on(stacked, x[0], 2.0, top=len(m.feature_names) + 1)
+    parts = {c['feature']: c['log_odds'] for c in leaned['contributions']}
+    assert parts['cnn_large_logit'] == pytest.approx(1.4)
+    assert leaned['start'] + sum(parts.values()) == pytest.approx(leaned['score'], abs=0.01)
+    assert leaned['score'] == pytest.approx(stacked.score(x[:1], [2.0])[0], abs=1e-3)
+
+
+def test_a_missing_or_other_large_network_is_a_clear_error(tmp_path, monkeypatch):
+    from stiction_ros.analysis.detection import cnn, stack
+    model = tmp_path / 'detector.npz'
+    model.write_bytes(model_file.DEFAULT_PATH.read_bytes())
+    monkeypatch.setattr(stack, 'LARGE_PATH', tmp_path / 'absent.npz')
+    with pytest.raises(model_file.DetectorFileError, match='make cnn-large'):
+        load_model(model)
+    net = cnn.load(model_file.DEFAULT_PATH.parent / 'stiction_cnn_large.npz')
+    arrays = {k: getattr(net, k) for k in cnn.ARRAYS}
+    arrays['fc2_b'] = arrays['fc2_b'] + 0.5
+    other = tmp_path / 'other.npz'
+    cnn.save(other, arrays, net.meta)
+    monkeypatch.setattr(stack, 'LARGE_PATH', other)
+    with pytest.raises(model_file.DetectorFileError, match='another large network'):
+        load_model(model)
 
 
 def test_a_tree_that_points_back_is_refused_not_walked_forever(tmp_path):

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.detection import cnn, dataset, FEATURE_NAMES, load_model
+from stiction_ros.analysis.detection import cnn, dataset, FEATURE_NAMES, load_model, stack
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
@@ -118,6 +118,9 @@ def main(argv=None):
         f'{dataset.TEST.start + args.sim_test - 1})')
     test = dataset.build(range(dataset.TEST.start, dataset.TEST.start + args.sim_test),
                          args.jobs, cache=args.cache or None)
+    if model.stack is not None:
+        say('the large network on the simulated test set')
+        test['large_logit'] = stack.seed_logits(test['seed'], args.jobs)
     study = {
         'date': datetime.date.today().isoformat(),
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '

@@ -5,12 +5,15 @@ Rebuild the learned stiction detector from simulated loops (``make detector``).
 
 Draws and simulates the training and calibration records from their seeds
 (``stiction_ros.analysis.detection.dataset``), trains the boosted trees on
-the first, calibrates their probability on the second and writes the model
-file.  The same seeds and code give the same trees and calibration (the
-header keeps the date and timings).  Real plant loops are never read.
+the first, weighs their out-of-fold score with the large network's logit
+(``stiction_ros.analysis.detection.stack``) on the same records, calibrates
+the weighed score's probability on the second and writes the model file.
+The same seeds, code and networks give the same trees, stack and calibration
+(the header keeps the date and timings).  Real plant loops are never read.
 """
 
 import argparse
+from dataclasses import replace
 import datetime
 import os
 from pathlib import Path
@@ -19,7 +22,7 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.detection import cnn, dataset, model_file
+from stiction_ros.analysis.detection import cnn, dataset, model_file, stack
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
@@ -44,7 +47,8 @@ def parser() -> argparse.ArgumentParser:
 def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> tuple:
     """Return (TreeModel, figures) trained and calibrated on fresh simulated records."""
     import sklearn
-    from stiction_ros.analysis.detection.train import PARAMS, train
+    from stiction_ros.analysis.detection.train import FOLDS, fit_calibration, fit_stack, \
+        out_of_fold_scores, PARAMS, train
     t0 = time.perf_counter()
     tr_seeds = range(dataset.TRAIN.start, dataset.TRAIN.start + n_train)
     ca_seeds = range(dataset.CALIBRATION.start, dataset.CALIBRATION.start + n_cal)
@@ -62,14 +66,26 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
             'skipped': {'train': tr['skipped'], 'calibration': ca['skipped']},
             'sklearn': sklearn.__version__, 'params': PARAMS, 'cnn_sha256': cnn.load().sha256,
             'date': datetime.date.today().isoformat()}
+    large = stack.network()
     model, clf = train(tr['x'], tr['y'], ca['x'], ca['y'], FEATURE_NAMES, meta)
+    trees_only = balanced_accuracy(confusion(ca['y'], model.probability(ca['x']) >= 0.5))
+    say(f'stack: the trees out of {FOLDS} folds, the large network on both sets')
+    oof = out_of_fold_scores(tr['x'], tr['y'], PARAMS)
+    lt, lc = stack.seed_logits(tr['seed'], jobs), stack.seed_logits(ca['seed'], jobs)
+    coef = fit_stack(oof, lt, tr['y'])
+    meta['stack'] = {'coef': coef, 'folds': FOLDS, 'network': stack.LARGE_PATH.name,
+                     'network_sha256': large.sha256}
+    model = replace(model, meta=meta)
+    calib_x, calib_y = fit_calibration(model.score(ca['x'], lc), ca['y'])
+    model = replace(model, calib_x=calib_x, calib_y=calib_y)
     t2 = time.perf_counter()
-    pred = model.probability(ca['x']) >= 0.5
+    pred = model.probability(ca['x'], lc) >= 0.5
     c = confusion(ca['y'], pred)
     # Features as first computed (a cached set reports the time it took then).
     figures = {'features_s': round(tr['seconds'] + ca['seconds'], 1), 'fit_s': round(t2 - t1, 1),
                'wall_s': round(t1 - t0, 1),
                'calibration_balanced_accuracy': round(balanced_accuracy(c), 4),
+               'trees_alone_calibration_balanced_accuracy': round(trees_only, 4),
                'trees': int(len(model.tree_start)), 'nodes': int(len(model.feature)),
                'max_abs_export_error': float(np.max(np.abs(
                    model.raw_score(ca['x']) - clf.decision_function(ca['x']))))}

@@ -66,10 +66,16 @@ def best_threshold(values: np.ndarray, truth: np.ndarray) -> float:
 
 
 def sim_rows(test: dict, model, stuck_threshold: float) -> dict:
-    """Return {method: score} on a simulated set built by ``dataset.build``."""
+    """
+    Return {method: score} on a simulated set built by ``dataset.build``.
+
+    ``test['large_logit']``: the large network's logit of each record, for a
+    detector that weighs it in (``stack.seed_logits``).
+    """
     x, y = test['x'], test['y']
     rows = {'learned detector (probability >= 0.5)':
-            score(y, list(model.probability(x) >= 0.5)) if len(y) else None,
+            score(y, list(model.probability(x, test.get('large_logit')) >= 0.5))
+            if len(y) else None,
             'old rule (signature vote, published weights)': score(y, list(test['old_rule'])),
             f'stuck-period test alone (OP share >= {stuck_threshold:.3g}, set on simulation)':
             score(y, feature_rule(x, 'stuck_op_share', stuck_threshold))}
@@ -80,7 +86,7 @@ def sim_rows(test: dict, model, stuck_threshold: float) -> dict:
 
 def by_kind(test: dict, model) -> list:
     """Return rows (kind, label, records, share called stiction) of the simulated set."""
-    p = model.probability(test['x']) >= 0.5
+    p = model.probability(test['x'], test.get('large_logit')) >= 0.5
     rows = []
     for kind in sorted(set(test['kind'])):
         for lab in (True, False):

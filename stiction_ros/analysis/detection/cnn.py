@@ -139,10 +139,10 @@ def _check(a: dict, path: Path) -> None:
         raise DetectorFileError(f'{path}: NaN or infinity in the weights')
 
 
-def load(path: str | Path | None = None) -> CnnModel:
+def load(path: str | Path | None = None, rebuild: str = '`make cnn`') -> CnnModel:
     """Return the network at ``path`` (default: the shipped one); bad files raise."""
     path = Path(path) if path is not None else DEFAULT_PATH
-    a, header = read_arrays(path, (*ARRAYS, 'sha256'), 'CNN', '`make cnn`')
+    a, header = read_arrays(path, (*ARRAYS, 'sha256'), 'CNN', rebuild)
     if (header.get('format') != FORMAT
             or header.get('version') != VERSION or not isinstance(header.get('meta'), dict)):
         raise DetectorFileError(f'{path}: not a {FORMAT} version {VERSION} file')
@@ -153,7 +153,7 @@ def load(path: str | Path | None = None) -> CnnModel:
                                     f'expected {np.dtype(want)}')
     if digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
         raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged); '
-                                f'rebuild it with `make cnn`')
+                                f'rebuild it with {rebuild}')
     _check(a, path)
     # Float64 for the arithmetic (exact from float32): einsum on mixed types
     # casts on every call, six times slower.

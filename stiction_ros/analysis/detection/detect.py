@@ -2,9 +2,10 @@
 The detector's answer on one record: stiction, no stiction, or cannot tell.
 
 First the record must be judgeable (:mod:`resolve`); if not, the answer is
-``cannot tell`` with the reason.  Otherwise the learned model turns the
-feature vector into a calibrated probability, and the answer is
-``stiction`` at ``THRESHOLD`` or above.  The evidence says which test saw
+``cannot tell`` with the reason.  Otherwise the boosted trees score the
+feature vector, the stack (:mod:`stack`) weighs that score with the large
+network's logit, the calibration map turns the result into a probability,
+and the answer is ``stiction`` at ``THRESHOLD`` or above.  The evidence says which test saw
 what and where in time, so the engineer can check the claim on the trend.
 """
 
@@ -13,7 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from stiction_ros.analysis.detection import cnn, model_file
+from stiction_ros.analysis.detection import cnn, model_file, stack
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
@@ -69,6 +70,7 @@ def _model(path: str | None) -> model_file.TreeModel:
         raise DetectorFileError(
             f'{path or model_file.DEFAULT_PATH}: trained with another CNN ({trained_with[:12]}) '
             f'than the one shipped ({net.sha256[:12]}); rebuild with `make detector`')
+    stack.check_network(model.meta, str(path or model_file.DEFAULT_PATH))
     return model
 
 
@@ -145,11 +147,13 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     if not judge.ok:
         return Detection('cannot tell', None, judge.reason, judge, lines, ev['features'],
                          ev['period_problem'], info, holds)
-    p = float(model.probability(vec)[0])
+    # The large network reads the same fresh rows as the figures.
+    logit = None if model.stack is None else stack.large_logit(op, pv, sp, integrating)
+    p = float(model.probability(vec, logit)[0])
     answer = 'stiction' if p >= THRESHOLD else 'no stiction'
     reason = (f'learned detector: probability of stiction {p:.2f} '
               f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
-    leaned = leaned_on(model, vec)
+    leaned = leaned_on(model, vec, logit)
     # After a notable share of held rows, which says how much of the trend was read.
     lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned))
     return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
@@ -158,19 +162,29 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
                       'leaned_on': leaned})
 
 
-def leaned_on(model: model_file.TreeModel, vec: np.ndarray, top: int = LEANED_ON) -> dict:
+def leaned_on(model: model_file.TreeModel, vec: np.ndarray, large_logit: float | None = None,
+              top: int = LEANED_ON) -> dict:
     """
-    Return which figures moved the trees' score of ``vec`` most, and by how much.
+    Return which figures moved the detector's score of ``vec`` most, and by how much.
 
-    ``contributions`` are in log-odds (the raw score): positive toward
-    stiction; ``start`` is the score of a record the trees know nothing
-    about (the training records' mean leaf) and ``score`` the record's.
+    ``contributions`` are in log-odds of the score the calibration map reads:
+    positive toward stiction.  ``start`` is the score of a record the trees
+    know nothing about (the training records' mean leaf); with a stack the
+    trees' parts are weighed as the stack weighs them and the large network's
+    logit is one more part (``cnn_large_logit``).  ``start`` plus every part
+    is ``score``.
     """
     bias, per = model.contributions(vec)
+    names, x = list(model.feature_names), list(np.ravel(vec))
+    w = model.stack
+    if w is not None:
+        bias, per = w[0] + w[1] * bias, w[1] * per
+        names.append('cnn_large_logit')
+        x.append(float(large_logit))
+        per = np.append(per, w[2] * float(large_logit))
     order = np.argsort(-np.abs(per))[:top]
-    x = np.ravel(vec)
-    return {'start': round(bias, 3), 'score': round(bias + float(per.sum()), 3),
-            'contributions': [{'feature': model.feature_names[i],
+    return {'start': round(float(bias), 3), 'score': round(float(bias + per.sum()), 3),
+            'contributions': [{'feature': names[i],
                                'value': None if not np.isfinite(x[i]) else round(float(x[i]), 4),
                                'log_odds': round(float(per[i]), 3)} for i in order]}
 

@@ -113,9 +113,29 @@ class TreeModel:
             node[inner] = child
         return bias, out
 
-    def probability(self, x: np.ndarray) -> np.ndarray:
+    @property
+    def stack(self) -> list | None:
+        """Return ``[intercept, trees weight, large network weight]``, or None for trees alone."""
+        stack = self.meta.get('stack')
+        return None if stack is None else [float(c) for c in stack['coef']]
+
+    def score(self, x: np.ndarray, large_logit: np.ndarray | None = None) -> np.ndarray:
+        """
+        Return the score the calibration map reads, for each row of ``x``.
+
+        The trees' raw score, or with a stack (``stiction_ros.analysis.detection.stack``)
+        its weighed sum with the large network's logit of each row.
+        """
+        raw, w = self.raw_score(x), self.stack
+        if w is None:
+            return raw
+        if large_logit is None:
+            raise ValueError('this detector weighs the large network in: give its logit')
+        return w[0] + w[1] * raw + w[2] * np.asarray(large_logit, dtype=np.float64)
+
+    def probability(self, x: np.ndarray, large_logit: np.ndarray | None = None) -> np.ndarray:
         """Return the calibrated probability of stiction of each row of ``x``."""
-        return np.interp(self.raw_score(x), self.calib_x, self.calib_y)
+        return np.interp(self.score(x, large_logit), self.calib_x, self.calib_y)
 
 
 def digest(arrays: dict, header: str) -> str:

@@ -82,3 +82,23 @@ def train(x_train: np.ndarray, y_train: np.ndarray, x_cal: np.ndarray, y_cal: np
     clf = fit_classifier(x_train, y_train, **params)
     calib = fit_calibration(clf.decision_function(x_cal), y_cal)
     return export(clf, feature_names, calib, meta), clf
+
+
+# The stack (stack.py): the trees' score out of fold, weighed with the large network.
+FOLDS = 5
+
+
+def out_of_fold_scores(x: np.ndarray, y: np.ndarray, params: dict) -> np.ndarray:
+    """Return each training record's trees score from trees that did not see it."""
+    from sklearn.model_selection import StratifiedKFold
+    out = np.zeros(len(y))
+    for a, b in StratifiedKFold(FOLDS, shuffle=True, random_state=0).split(x, y):
+        out[b] = fit_classifier(x[a], y[a], **params).decision_function(x[b])
+    return out
+
+
+def fit_stack(tree_scores: np.ndarray, logits: np.ndarray, y: np.ndarray) -> list:
+    """Return ``[intercept, trees weight, network weight]`` of the class-balanced logistic fit."""
+    from sklearn.linear_model import LogisticRegression
+    fit = LogisticRegression(class_weight='balanced').fit(np.c_[tree_scores, logits], y)
+    return [float(fit.intercept_[0]), *map(float, fit.coef_[0])]
