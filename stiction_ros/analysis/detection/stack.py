@@ -8,8 +8,8 @@ few milliseconds a record, so it can learn from 480 000 (``make cnn-large``,
 on a GPU).  Alone it scores about what the trees do; a logistic regression
 on the two, fitted on the training seeds with the trees' scores out of fold
 (``train.fit_stack``), scores better than either (docs/DETECTION.md,
-section 3).  The isotonic
-calibration then maps the stacked score to a probability.
+section 3).  The isotonic calibration then maps the stacked score to a
+probability.
 
 The weights live in the tree model's header (``meta['stack']``, read by
 :meth:`TreeModel.score`) with the SHA-256 of the network they were fitted
