@@ -172,10 +172,11 @@ def _leaned(leaned: dict) -> list:
     rows = [[e(c['feature']), 'missing' if c['value'] is None else num(c['value']),
              f'{c["log_odds"]:+.2f}'] for c in leaned.get('contributions', [])]
     return ["<h2>What the detector's score rests on</h2>",
-            f'<p>The trees start from {leaned["start"]:+.2f} (log-odds of stiction, for a '
-            f'record they know nothing about) and reach {leaned["score"]:+.2f}; these figures '
-            f'moved the score most (docs/DETECTION.md, section 2, says what each one '
-            f'measures).</p>',
+            f'<p>The detector&rsquo;s score starts from {leaned["start"]:+.2f} (log-odds of '
+            f'stiction, for a record it knows nothing about) and reaches '
+            f'{leaned["score"]:+.2f}; these parts moved it most (docs/DETECTION.md, section 2, '
+            f'says what each figure measures; <code>cnn_large_logit</code> is the large '
+            f'network&rsquo;s).</p>',
             table(['figure', 'value', 'moved the score by'], rows)]
 
 
