@@ -126,6 +126,7 @@ def main(argv=None):
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
                    f'Python {platform.python_version()})',
         'data': str(args.data), 'model': model.meta, 'cnn': cnn.load().meta,
+        'cnn_large': None if model.stack is None else stack.network().meta,
         'stuck_threshold': stuck_th,
         'plant': plant_rows(cases, cv_pred, stuck_th),
         'plant_tags': per_tag(cases, [c['report']['stiction']['detected'] for c in cases]),

@@ -24,12 +24,12 @@ def table(rows: dict) -> list:
     return out
 
 
-def _cnn_line(meta: dict | None) -> list:
+def _cnn_line(meta: dict | None, what: str = "The detector's 1-D CNN (`make cnn`)") -> list:
     if not meta:
         return []
     fig = meta.get('figures', {})
     seeds = meta.get('corpus_seeds', ['-', '-'])
-    return [f'- The detector\'s 1-D CNN (`make cnn`): {meta.get("records", "-")} simulated '
+    return [f'- {what}: {meta.get("records", "-")} simulated '
             f'records of seeds {seeds[0]}-{seeds[1] - 1 if isinstance(seeds[1], int) else "-"}, '
             f'{fig.get("epochs", "-")} epochs in {fig.get("train_s", "-")} s (PyTorch '
             f'{fig.get("torch", "-")}, {_where(fig)}).']
@@ -111,8 +111,12 @@ def markdown(study: dict) -> str:
         f'- Training (`make detector`): features {fig.get("features_s", "-")} s, fit '
         f'{fig.get("fit_s", "-")} s; {fig.get("trees", "-")} trees, {fig.get("nodes", "-")} '
         f'nodes; calibration-set balanced accuracy '
-        f'{_f(fig.get("calibration_balanced_accuracy"), 3)}.',
+        f'{_f(fig.get("calibration_balanced_accuracy"), 3)}'
+        + (f' (the trees alone {_f(fig["trees_alone_calibration_balanced_accuracy"], 3)})'
+           if 'trees_alone_calibration_balanced_accuracy' in fig else '') + '.',
         *_cnn_line(study.get('cnn')),
+        *_cnn_line(study.get('cnn_large'), 'The large network the stack weighs in '
+                   '(`make cnn-large`)'),
         f'- Whole analysis of one plant file (reading, fits, signatures, detector, '
         f'Hammerstein, HTML): median {sorted(secs)[len(secs) // 2]:.2f} s, max {max(secs):.2f} s.',
         '',
