@@ -258,6 +258,13 @@ def test_a_stacked_detector_weighs_the_large_network_in(tmp_path):
     assert parts['cnn_large_logit'] == pytest.approx(1.4)
     assert leaned['start'] + sum(parts.values()) == pytest.approx(leaned['score'], abs=0.01)
     assert leaned['score'] == pytest.approx(stacked.score(x[:1], [2.0])[0], abs=1e-3)
+    # Saved with two weights behind a fresh checksum: refused on load.
+    bad = tmp_path / 'bad_stack.npz'
+    model_file.save(bad, model_file.TreeModel(
+        **{**m.__dict__, 'meta': {**m.meta, 'stack': {'coef': [0.1, 0.2],
+                                                      'network_sha256': 'x'}}}))
+    with pytest.raises(model_file.DetectorFileError, match='three finite weights'):
+        model_file.load(bad)
 
 
 def test_a_missing_or_other_large_network_is_a_clear_error(tmp_path, monkeypatch):

@@ -243,6 +243,14 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
     if digest({k: a[k] for k in ARRAYS}, str(a['header'])) != str(a['sha256']):
         raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
     _check(a, header, path)
+    stack = header['meta'].get('stack')
+    if stack is not None and not (
+            isinstance(stack, dict) and isinstance(stack.get('coef'), list)
+            and len(stack['coef']) == 3
+            and all(isinstance(c, (int, float)) and np.isfinite(c) for c in stack['coef'])
+            and isinstance(stack.get('network_sha256'), str)):
+        raise DetectorFileError(f'{path}: the stack needs three finite weights and the '
+                                f'SHA-256 of its network')
     names = tuple(header['feature_names'])
     if feature_names is not None and names != tuple(feature_names):
         raise DetectorFileError(f'{path}: trained on features {list(names)}, this code '
