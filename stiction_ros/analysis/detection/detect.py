@@ -5,8 +5,9 @@ First the record must be judgeable (:mod:`resolve`); if not, the answer is
 ``cannot tell`` with the reason.  Otherwise the boosted trees score the
 feature vector, the stack (:mod:`stack`) weighs that score with the large
 network's logit, the calibration map turns the result into a probability,
-and the answer is ``stiction`` at ``THRESHOLD`` or above.  The evidence says which test saw
-what and where in time, so the engineer can check the claim on the trend.
+and the answer is ``stiction`` at ``THRESHOLD`` or above.  The evidence
+says which test saw what and where in time, so the engineer can check the
+claim on the trend.
 """
 
 from dataclasses import dataclass, field
