@@ -14,6 +14,8 @@ import textwrap
 
 import numpy as np
 
+from stiction_ros.analysis.detection import probability_text
+
 VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
 FRICTION_WORDS = {'stiction': 'stiction claimed', 'backlash': 'backlash (play without stick)',
                   'none': 'not claimed'}
@@ -136,7 +138,7 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
 def _verdict(report):
     st = report['stiction']
     if st.get('probability') is not None:
-        how = f'probability {st["probability"]:.2f}'
+        how = f'probability {probability_text(st["probability"])}'
     elif st['detected'] is None:
         how = st.get('reason', '')
     else:

@@ -30,7 +30,7 @@ from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
 from stiction_ros.study.accuracy_study import (
-    best_threshold, by_kind, per_tag, score, sim_rows)
+    best_threshold, by_kind, per_tag, reliability, score, sim_rows)
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
@@ -120,7 +120,8 @@ def main(argv=None):
                          args.jobs, cache=args.cache or None)
     if model.stack is not None:
         say('the large network on the simulated test set')
-        test['large_logit'] = stack.seed_logits(test['seed'], args.jobs)
+        test['large_logit'] = stack.seed_logits(test['seed'], args.jobs,
+                                                cache=args.cache or None)
     study = {
         'date': datetime.date.today().isoformat(),
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
@@ -132,6 +133,8 @@ def main(argv=None):
         'plant_tags': per_tag(cases, [c['report']['stiction']['detected'] for c in cases]),
         'plant_seconds': [round(c['seconds'], 3) for c in cases],
         'sim': sim_rows(test, model, stuck_th), 'sim_kinds': by_kind(test, model),
+        'sim_reliability': reliability(test['y'], model.probability(
+            test['x'], test.get('large_logit'))) if len(test['y']) else None,
         'sim_skipped': test['skipped'], 'sim_records': int(len(test['y'])),
         'sim_seconds': round(test['seconds'], 1), 'sim_jobs': args.jobs,
         'sim_seeds': [dataset.TEST.start, dataset.TEST.start + args.sim_test],

@@ -2,6 +2,8 @@
 
 import math
 
+from stiction_ros.analysis.detection import probability_text
+
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
 RULE = '|---|---|---|---|---|---|---|---|'
@@ -40,6 +42,27 @@ def _where(fig: dict) -> str:
     if 'device' in fig:
         return str(fig['device'])
     return f'cpu, {fig.get("torch_threads", "-")} threads'
+
+
+def _p(v):
+    return '-' if v is None else probability_text(v)
+
+
+def _reliability(rel: dict | None) -> list:
+    if not rel:
+        return []
+    return [
+        "Does the probability mean what it says? The learned detector's stated probability "
+        'on these records against the share of them that stick, at even odds (each class '
+        f'weighing half, as in calibration). Class-balanced log loss {_f(rel["log_loss"], 3)}, '
+        f'Brier score {_f(rel["brier"], 4)}.',
+        '',
+        '| stated probability | records | sticky | mean stated | observed at even odds |',
+        '|---|---|---|---|---|',
+        *[f'| {lo:g}-{hi:g} | {n} | {k} | {probability_text(s)} | {probability_text(o)} |'
+          for lo, hi, n, k, s, o in rel['rows']],
+        '',
+    ]
 
 
 def markdown(study: dict) -> str:
@@ -104,6 +127,7 @@ def markdown(study: dict) -> str:
         *[f'| {k} | {"sticky" if lab else "healthy"} | {n} | {100 * r:.1f} % |'
           for k, lab, n, r in study['sim_kinds']],
         '',
+        *_reliability(study.get('sim_reliability')),
         '## Time',
         '',
         f'- Simulated test set: {study["sim_records"]} records simulated and turned into '
@@ -128,7 +152,7 @@ def markdown(study: dict) -> str:
     for c in study['cases']:
         ev = (c['evidence'] or [c['reason'] or ''])[0].replace('|', '/')
         lines.append(f'| {"sticky" if c["label"] else "healthy"} | {c["file"]} | '
-                     f'{c["answer"]} | {_f(c["probability"])} | '
+                     f'{c["answer"]} | {_p(c["probability"])} | '
                      f'{"stiction" if c["old_rule"] else "-"} | '
                      f'{"stiction" if c["cv_old_rule"] else "-"} | {ev[:140]} |')
     lines.append('')

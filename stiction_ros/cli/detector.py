@@ -71,7 +71,8 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     trees_only = balanced_accuracy(confusion(ca['y'], model.probability(ca['x']) >= 0.5))
     say(f'stack: the trees out of {FOLDS} folds, the large network on both sets')
     oof = out_of_fold_scores(tr['x'], tr['y'], PARAMS)
-    lt, lc = stack.seed_logits(tr['seed'], jobs), stack.seed_logits(ca['seed'], jobs)
+    lt = stack.seed_logits(tr['seed'], jobs, cache=cache)
+    lc = stack.seed_logits(ca['seed'], jobs, cache=cache)
     coef = fit_stack(oof, lt, tr['y'])
     meta['stack'] = {'coef': coef, 'folds': FOLDS, 'network': stack.LARGE_PATH.name,
                      'network_sha256': large.sha256}

@@ -96,6 +96,35 @@ def by_kind(test: dict, model) -> list:
     return rows
 
 
+# Stated probability bins of the reliability table: the tails apart, since the
+# calibration map's end steps are where a probability can claim too much.
+RELIABILITY_BINS = (0.0, 0.01, 0.05, 0.2, 0.5, 0.8, 0.95, 0.99, 1.0)
+
+
+def reliability(y: np.ndarray, p: np.ndarray) -> dict:
+    """
+    Return how the stated probability compares with what happened, at even odds.
+
+    Each class weighs half, as in the calibration, so a bin's observed rate
+    is the share of sticky records it would hold were sticky and healthy
+    loops equally common.  ``rows``: (low, high, records, sticky, mean
+    stated, observed); ``log_loss`` and ``brier``: the class-balanced means
+    (a stated 0 or 1 that is wrong makes the log loss infinite).
+    """
+    y, p = np.asarray(y, dtype=bool), np.asarray(p, dtype=float)
+    w = np.where(y, 0.5 / max(y.sum(), 1), 0.5 / max((~y).sum(), 1))
+    rows = []
+    for lo, hi in zip(RELIABILITY_BINS[:-1], RELIABILITY_BINS[1:]):
+        m = (p >= lo) & ((p < hi) if hi < 1.0 else (p <= hi))
+        if m.any():
+            rows.append((lo, hi, int(m.sum()), int(y[m].sum()), float(p[m].mean()),
+                         float((w[m] * y[m]).sum() / w[m].sum())))
+    with np.errstate(divide='ignore'):
+        loss = -np.where(y, np.log(p), np.log1p(-p))
+    return {'rows': rows, 'log_loss': float((w * loss).sum()),
+            'brier': float((w * (p - y) ** 2).sum())}
+
+
 def per_tag(cases: list, answers: list) -> list:
     """Return rows (tag, label, records, called stiction, cannot tell) of the plant loops."""
     rows = []

@@ -152,7 +152,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     logit = None if model.stack is None else stack.large_logit(op, pv, sp, integrating)
     p = float(model.probability(vec, logit)[0])
     answer = 'stiction' if p >= THRESHOLD else 'no stiction'
-    reason = (f'learned detector: probability of stiction {p:.2f} '
+    reason = (f'learned detector: probability of stiction {probability_text(p)} '
               f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
     leaned = leaned_on(model, vec, logit)
     # After a notable share of held rows, which says how much of the trend was read.
@@ -161,6 +161,17 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
                      ev['period_problem'], info,
                      {'stuck': ev['stuck'].to_json(sample_time, rows), **holds,
                       'leaned_on': leaned})
+
+
+def probability_text(p: float) -> str:
+    """
+    Return ``p`` as the analyzer prints it: two decimals, three in the tails.
+
+    The calibration's lowest and highest steps read about 0.002 and 0.998;
+    printed to two decimals they would read 0.00 and 1.00, a certainty that a
+    thousand calibration records cannot support.
+    """
+    return f'{p:.3f}' if p < 0.01 or p > 0.99 else f'{p:.2f}'
 
 
 def leaned_on(model: model_file.TreeModel, vec: np.ndarray, large_logit: float | None = None,

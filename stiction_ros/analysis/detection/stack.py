@@ -17,6 +17,7 @@ with; a different or missing network is a :class:`DetectorFileError`.
 """
 
 from concurrent.futures import ProcessPoolExecutor
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -45,13 +46,39 @@ def _seed_logit(seed: int) -> float:
     return large_logit(op, pv, sp, sc.integrating)
 
 
-def seed_logits(seeds, jobs: int = 1) -> np.ndarray:
-    """Return the large network's logit of each simulated record of ``seeds``."""
+def seed_logits(seeds, jobs: int = 1, cache: str | Path | None = None) -> np.ndarray:
+    """
+    Return the large network's logit of each simulated record of ``seeds``.
+
+    ``cache``: a folder where the logits are kept under a hash of the seeds,
+    the network and the code a logit depends on (the simulator's and the
+    features' sources, as ``dataset.code_version``, and this file), and read
+    back while all of them match.
+    """
     seeds = [int(s) for s in seeds]
+    path = None
+    if cache is not None:
+        path = Path(cache) / f'large_logits_{_key(seeds)}.npy'
+        if path.is_file():
+            return np.load(path, allow_pickle=False)
     if jobs <= 1:
-        return np.array([_seed_logit(s) for s in seeds])
-    with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
-        return np.array(list(pool.map(_seed_logit, seeds, chunksize=32)))
+        out = np.array([_seed_logit(s) for s in seeds])
+    else:
+        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
+            out = np.array(list(pool.map(_seed_logit, seeds, chunksize=32)))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.save(path, out)
+    return out
+
+
+def _key(seeds: list) -> str:
+    from stiction_ros.analysis.detection.dataset import code_version
+    h = hashlib.sha256(np.asarray(seeds, dtype=np.int64).tobytes())
+    h.update(network().sha256.encode())
+    h.update(code_version().encode())
+    h.update(Path(__file__).read_bytes())
+    return f'{seeds[0] if seeds else 0}_{len(seeds)}_{h.hexdigest()[:16]}'
 
 
 def network() -> cnn.CnnModel:

@@ -31,17 +31,35 @@ def fit_calibration(raw: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndar
     Return the isotonic map (score knots, probabilities) fitted on held-out scores.
 
     Each class carries half the weight, so the probability is that of
-    stiction at even prior odds.
+    stiction at even prior odds.  Each step of the map is then the Jeffreys
+    estimate of its records (half a record of each class added), so that no
+    step reads 0 or 1: a step of 350 healthy records and no sticky one says
+    about 0.002, not certainty, since a thousand records cannot support more.
     """
     from sklearn.isotonic import IsotonicRegression
     y = np.asarray(y, dtype=bool)
-    w = np.where(y, 0.5 / max(y.sum(), 1), 0.5 / max((~y).sum(), 1))
+    w_pos, w_neg = 0.5 / max(y.sum(), 1), 0.5 / max((~y).sum(), 1)
+    w = np.where(y, w_pos, w_neg)
     iso = IsotonicRegression(out_of_bounds='clip', y_min=0.0, y_max=1.0)
     iso.fit(raw, y, sample_weight=w)
     cx, cy = np.asarray(iso.X_thresholds_, float), np.asarray(iso.y_thresholds_, float)
+    cy = _jeffreys_steps(iso.predict(raw), y, cy, w_pos, w_neg)
     if cx.size < 2:
         cx, cy = np.array([cx[0] - 1.0, cx[0] + 1.0]), np.array([cy[0], cy[0]])
     return cx, cy
+
+
+def _jeffreys_steps(fitted: np.ndarray, y: np.ndarray, knots_y: np.ndarray,
+                    w_pos: float, w_neg: float) -> np.ndarray:
+    """Return ``knots_y`` with each step's value replaced by its records' Jeffreys estimate."""
+    from sklearn.isotonic import IsotonicRegression
+    steps = np.unique(knots_y)
+    pos = np.array([np.sum(y & (fitted == v)) for v in steps], dtype=float)
+    neg = np.array([np.sum(~y & (fitted == v)) for v in steps], dtype=float)
+    a, b = w_pos * (pos + 0.5), w_neg * (neg + 0.5)
+    # Shrinking a small step more than a large one may break the order: pool again.
+    smooth = IsotonicRegression().fit(np.arange(steps.size), a / (a + b), sample_weight=a + b)
+    return np.interp(knots_y, steps, smooth.predict(np.arange(steps.size)))
 
 
 def export(clf, feature_names, calib: tuple, meta: dict) -> TreeModel:
