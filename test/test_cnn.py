@@ -47,6 +47,25 @@ def test_the_input_does_not_see_units_offsets_or_the_set_points_own_scale():
     assert np.abs(cnn.channels(op, pv, sp * 1e9)).max() <= cnn.CLIP
 
 
+@pytest.mark.parametrize('path', [None, 'large'])
+def test_the_logit_does_not_depend_on_the_loops_sign_conventions(path):
+    from stiction_ros.analysis.detection import stack
+    path = str(stack.LARGE_PATH) if path else None
+    rng = np.random.default_rng(4)
+    op = 40 + np.cumsum(rng.normal(size=700)) * 0.2
+    pv = 3.0 + np.cumsum(rng.normal(size=700)) * 0.05
+    sp = np.where(np.arange(700) > 350, 3.5, 3.0)
+    ref = cnn.cnn_logit(op, pv, sp, False, path)
+    # A transmitter ranged the other way, an air-to-close valve, both: one loop.
+    for o, p, s in [(op, -pv, -sp), (100.0 - op, pv, sp), (100.0 - op, -pv, -sp)]:
+        assert cnn.cnn_logit(o, p, s, False, path) == pytest.approx(ref, abs=1e-9)
+    # The network alone does tell the four apart: the mean is what makes them one.
+    net, x = cnn._shipped(path), cnn.channels(op, pv, sp)
+    one = [net.logit(x * np.array([a, a, b, a, b], np.float32)[:, None], False)
+           for a, b in cnn.SIGNS]
+    assert np.ptp(one) > 1e-3 and ref == pytest.approx(np.mean(one), abs=1e-12)
+
+
 def test_the_shipped_network_never_saw_a_seed_the_detector_trains_calibrates_or_scores_on():
     from stiction_ros.analysis.detection.cnn_train import CORPUS
     model = cnn.load()

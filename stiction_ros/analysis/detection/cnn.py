@@ -14,7 +14,9 @@ out), a 7-tap convolution to ``C`` channels, seven residual convolutions of 5
 taps dilated 1 to 64 (a receptive field of about 500 samples: an hour's
 stuck period at 10 s), the mean and the maximum of each channel over the
 record, the loop type, and two dense layers.  Any record length works;
-training cut random windows of 500 samples.
+training cut random windows of 500 samples.  The logit given is the mean
+over the loop's four sign conventions (:data:`SIGNS`), which the physics
+says cannot matter and the network alone does not fully ignore.
 
 The weights are plain arrays in ``resources/stiction_cnn.npz`` with a JSON
 header and a SHA-256, loaded without pickle; a missing, damaged or edited
@@ -166,12 +168,36 @@ def _shipped(path: str | None) -> CnnModel:
     return load(path)
 
 
+# The four sign conventions of one loop, as factors of (PV and SP, OP): a
+# transmitter ranged the other way round, an air-to-close valve, or both.  The
+# valve's friction is the same in each, so the answer may not depend on them.
+SIGNS = ((1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0))
+
+
+def symmetric_logit(net: CnnModel, x: np.ndarray, integrating: bool) -> float:
+    """
+    Return the mean of ``net``'s logits over the four sign versions of the input ``x``.
+
+    Negating a signal negates its standardised channel and its change exactly,
+    so each version is what :func:`channels` gives for that loop.  Trained on
+    loops of every sign, the network still reads each version a little
+    differently (up to 2.5 in the logit on a plant record); the mean depends
+    on none of them.
+    """
+    out = 0.0
+    for pv_sign, op_sign in SIGNS:
+        s = np.array([pv_sign, pv_sign, op_sign, pv_sign, op_sign], dtype=x.dtype)
+        out += net.logit(x * s[:, None], integrating)
+    return out / len(SIGNS)
+
+
 def cnn_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, integrating: bool,
               path: str | None = None) -> float:
     """
     Return the shipped network's log-odds of stiction for one contiguous record.
 
-    The network costs about 33 us a sample; a record longer than
+    The logit is the mean over the loop's four sign conventions
+    (:func:`symmetric_logit`).  The network costs about 33 us a sample; a record longer than
     ``WINDOW`` samples (no simulated record is) is read as at most
     ``WINDOWS`` evenly spaced windows of ``WINDOW`` samples, standardised over
     the whole record, and their logits averaged, so a day at 1 s costs what
@@ -180,6 +206,7 @@ def cnn_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, integrating
     net, x = _shipped(path), channels(op, pv, sp)
     n = x.shape[1]
     if n <= WINDOW:
-        return net.logit(x, integrating)
+        return symmetric_logit(net, x, integrating)
     starts = np.unique(np.linspace(0, n - WINDOW, WINDOWS).astype(int))
-    return float(np.mean([net.logit(x[:, a:a + WINDOW], integrating) for a in starts]))
+    return float(np.mean([symmetric_logit(net, x[:, a:a + WINDOW], integrating)
+                          for a in starts]))
