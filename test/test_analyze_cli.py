@@ -13,6 +13,7 @@ from data_paths import plant_loops_dir
 import numpy as np
 import pytest
 
+from stiction_ros.analysis.detection import probability_text
 from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
@@ -159,7 +160,7 @@ def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
     assert 'signature_vote' in st
     # The terminal says the answer with its probability and the first evidence; the page
     # shows all of it.
-    assert f'{st["answer"]} (probability {st["probability"]:.2f})' in res.stdout
+    assert f'{st["answer"]} (probability {probability_text(st["probability"])})' in res.stdout
     assert f'\n  evidence: {st["evidence"][0]}\n' in res.stdout
     assert 'Evidence' in (tmp_path / 'r.html').read_text()
 
