@@ -197,11 +197,12 @@ def cnn_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, integrating
     Return the shipped network's log-odds of stiction for one contiguous record.
 
     The logit is the mean over the loop's four sign conventions
-    (:func:`symmetric_logit`).  The network costs about 33 us a sample; a record longer than
-    ``WINDOW`` samples (no simulated record is) is read as at most
-    ``WINDOWS`` evenly spaced windows of ``WINDOW`` samples, standardised over
-    the whole record, and their logits averaged, so a day at 1 s costs what
-    four windows do.
+    (:func:`symmetric_logit`).  One pass of the network costs about 33 us a
+    sample, so the four about 130 us.  A record longer than ``WINDOW``
+    samples (no simulated record is) is read as at most ``WINDOWS`` evenly
+    spaced windows of ``WINDOW`` samples, standardised over the whole
+    record, and their logits averaged, so a day at 1 s costs what four
+    windows do.
     """
     net, x = _shipped(path), channels(op, pv, sp)
     n = x.shape[1]
