@@ -47,8 +47,9 @@ accuracy: venv
 	$(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
-# Rebuild the learned stiction detector from simulated loops alone (fixed seeds, about
-# 20 min on 2 cores): stiction_ros/resources/stiction_detector.npz.
+# Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
+# stiction_ros/resources/stiction_detector.npz.  About 50 min on 2 cores from scratch
+# (the figures of 6 000 simulated records), under a minute once out/detector_cache holds them.
 detector: venv
 	$(PY) -m stiction_ros.cli.detector
 
