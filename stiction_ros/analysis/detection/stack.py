@@ -32,9 +32,8 @@ LARGE_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn_l
 
 def large_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
                 integrating: bool, path: str | Path | None = None) -> float:
-    """Return the large network's log-odds of stiction, on the inputs the figures read."""
-    sp_arr = np.full(len(pv), float(np.mean(pv))) if sp is None else sp
-    return cnn.cnn_logit(op, pv, sp_arr, integrating, str(path or LARGE_PATH))
+    """Return the large network's log-odds of stiction (no SP: the mean PV, as cnn.channels)."""
+    return cnn.cnn_logit(op, pv, sp, integrating, str(path or LARGE_PATH))
 
 
 def _seed_logit(seed: int) -> float:
