@@ -26,6 +26,10 @@ def test_cannot_tell_reasons():
     # A dead historian tag: PV is one tiny constant (seen in a plant export).
     assert judgeable(op, np.full(600, 3.5e-44), 1.0).code == 'pv_constant'
     assert judgeable(np.full(600, 42.0), pv, 1.0).code == 'no_excitation'
+    # OP exported as a 0-1 fraction: refused, and the reason says what to do.
+    j = judgeable(op / 100.0 - 0.1, pv, 1.0)
+    assert j.code == 'no_excitation' and 'x 100' in j.reason
+    assert 'x 100' not in judgeable(np.full(600, 42.0), pv, 1.0).reason
     # OP and PV flipping every sample: a cycle the sampling cannot resolve.
     alt = np.where(np.arange(600) % 2 == 0, 1.0, -1.0)
     j = judgeable(50 + 5 * alt + noisy(600, 3, 0.1), 5 * alt + noisy(600, 4, 0.1), 180.0)

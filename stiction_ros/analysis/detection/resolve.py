@@ -108,9 +108,14 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
                          f'{float(np.ptp(pv)):.3g}): the measurement shows nothing of the '
                          f'valve; check the transmitter or the historian tag')
     if _frozen(op) or float(np.ptp(op)) < MIN_OP_TRAVEL:
+        # Some historians export OP as a 0-1 fraction; every threshold here is in %.
+        fraction = (0.0 < float(np.ptp(op)) and float(np.max(np.abs(op))) <= 1.0
+                    and not _frozen(op))
+        hint = ('; OP stays within 0-1: if it is a fraction of the stroke, give it in % '
+                '(x 100)' if fraction else '')
         return Judgeable(False, 'no_excitation',
                          f'OP never moved more than {float(np.ptp(op)):.3g} % (manual mode or '
-                         f'saturated?): the valve was never asked to move')
+                         f'saturated?): the valve was never asked to move{hint}')
     d_op, d_pv = np.diff(op), np.diff(pv)
     if lag1(d_op) < ALTERNATING - 0.2 and lag1(pv - np.mean(pv)) < ALTERNATING:
         return Judgeable(False, 'under_sampled',
