@@ -298,3 +298,36 @@ def test_a_tree_that_points_back_is_refused_not_walked_forever(tmp_path):
     model_file.save(bad, model_file.TreeModel(**{**m.__dict__, 'left': left}))
     with pytest.raises(model_file.DetectorFileError, match='points back'):
         model_file.load(bad)
+
+
+def test_the_large_network_reads_the_whole_record_and_three_80_percent_windows():
+    from stiction_ros.analysis.detection import cnn, stack
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(7_000_123)
+    rec = simulate(sc)
+    op, pv, sp = rec['op'], rec['pv'], rec['sp']
+    n = len(pv)
+    naive = [cnn.cnn_logit(op[int(round(a * n)):int(round(b * n))],
+                           pv[int(round(a * n)):int(round(b * n))],
+                           sp[int(round(a * n)):int(round(b * n))], sc.integrating,
+                           str(stack.LARGE_PATH)) for a, b in stack.VIEWS]
+    assert (0.0, 1.0) in stack.VIEWS and len(set(naive)) == len(naive)
+    assert stack.large_logit(op, pv, sp, sc.integrating) == pytest.approx(np.mean(naive),
+                                                                          abs=1e-12)
+    # A scalar set point is the same as one held at that value.
+    assert stack.large_logit(op, pv, 50.0, sc.integrating) == pytest.approx(
+        stack.large_logit(op, pv, np.full(n, 50.0), sc.integrating), abs=1e-12)
+
+
+def test_a_detector_stacked_on_other_views_of_the_record_is_refused(tmp_path):
+    from stiction_ros.analysis.detection import stack
+    m = model_file.load()
+    for views in (None, [[0.0, 1.0]]):
+        st = {k: v for k, v in m.meta['stack'].items() if k != 'views'}
+        if views is not None:
+            st['views'] = views
+        path = tmp_path / f'views_{views is None}.npz'
+        model_file.save(path, model_file.TreeModel(**{**m.__dict__,
+                                                      'meta': {**m.meta, 'stack': st}}))
+        with pytest.raises(model_file.DetectorFileError, match='views'):
+            stack.check_network(model_file.load(path).meta, str(path))

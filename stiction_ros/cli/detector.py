@@ -75,7 +75,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     lc = stack.seed_logits(ca['seed'], jobs, cache=cache)
     coef = fit_stack(oof, lt, tr['y'])
     meta['stack'] = {'coef': coef, 'folds': FOLDS, 'network': stack.LARGE_PATH.name,
-                     'network_sha256': large.sha256}
+                     'network_sha256': large.sha256, 'views': [list(v) for v in stack.VIEWS]}
     model = replace(model, meta=meta)
     calib_x, calib_y = fit_calibration(model.score(ca['x'], lc), ca['y'])
     model = replace(model, calib_x=calib_x, calib_y=calib_y)
