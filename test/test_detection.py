@@ -317,6 +317,12 @@ def test_the_large_network_reads_the_whole_record_and_three_80_percent_windows()
     # A scalar set point is the same as one held at that value.
     assert stack.large_logit(op, pv, 50.0, sc.integrating) == pytest.approx(
         stack.large_logit(op, pv, np.full(n, 50.0), sc.integrating), abs=1e-12)
+    # A record longer than one network window is already read as several windows.
+    rng = np.random.default_rng(5)
+    long_op = 50 + np.cumsum(rng.normal(0, 0.1, cnn.WINDOW + 1))
+    long_pv = 10 + rng.normal(0, 1, cnn.WINDOW + 1)
+    assert stack.large_logit(long_op, long_pv, None, False) == cnn.cnn_logit(
+        long_op, long_pv, None, False, str(stack.LARGE_PATH))
 
 
 def test_a_detector_stacked_on_other_views_of_the_record_is_refused(tmp_path):
