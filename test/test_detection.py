@@ -328,11 +328,11 @@ def test_the_large_network_reads_the_whole_record_and_three_80_percent_windows()
 def test_a_detector_stacked_on_other_views_of_the_record_is_refused(tmp_path):
     from stiction_ros.analysis.detection import stack
     m = model_file.load()
-    for views in (None, [[0.0, 1.0]]):
+    for views in (None, [[0.0, 1.0]], 3):
         st = {k: v for k, v in m.meta['stack'].items() if k != 'views'}
         if views is not None:
             st['views'] = views
-        path = tmp_path / f'views_{views is None}.npz'
+        path = tmp_path / f'views_{len(str(views))}.npz'
         model_file.save(path, model_file.TreeModel(**{**m.__dict__,
                                                       'meta': {**m.meta, 'stack': st}}))
         with pytest.raises(model_file.DetectorFileError, match='views'):

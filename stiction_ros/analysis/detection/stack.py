@@ -118,11 +118,15 @@ def check_network(meta: dict, where: str) -> None:
         return
     net = network()
     # A file from before the views were read the whole record once.
-    views = stack.get('views', [[0.0, 1.0]])
-    if [list(v) for v in views] != [list(v) for v in VIEWS]:
+    views, expected = stack.get('views', [[0.0, 1.0]]), [list(v) for v in VIEWS]
+    try:
+        same = [list(v) for v in views] == expected
+    except TypeError:       # an edited header: not a list of pairs
+        same = False
+    if not same:
         raise DetectorFileError(
             f'{where}: stacked with the large network reading the views {views}, not '
-            f'{[list(v) for v in VIEWS]}; rebuild with `make detector`')
+            f'{expected}; rebuild with `make detector`')
     if stack.get('network_sha256') != net.sha256:
         raise DetectorFileError(
             f'{where}: stacked with another large network '
