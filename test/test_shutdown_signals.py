@@ -30,6 +30,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from std_msgs.msg import Float64
 from stiction_ros.bag.reader import read_bag
+from stiction_ros.nodes.run import BACKSTOP_S
 from stiction_ros.nodes.sampled import DATA_QOS
 from stiction_ros.resources import config_file
 
@@ -366,6 +367,19 @@ def test_a_teardown_that_stalls_ends_with_the_runs_status_and_the_stacks(status)
     assert done.returncode == status
     assert 'plant: DDS teardown still running 0.3 s after the node closed' in done.stderr
     assert 'line 4 in <module>' in done.stderr     # the main thread's stack, in the sleep
+
+
+def test_a_teardown_that_stalls_holding_the_gil_still_ends_with_the_stacks():
+    # A regular expression that backtracks for ever holds the GIL, as a stall inside
+    # C code can: the Python watchdog never runs, faulthandler's thread does.
+    code = ('import re\nfrom stiction_ros.nodes.run import end_teardown_within\n'
+            'end_teardown_within(0.3, "plant", [0])\nre.match(r"(a+)+$", "a" * 64 + "b")\n')
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=20)
+    assert done.returncode == 1, done.stderr
+    assert time.monotonic() - started >= 0.3 + BACKSTOP_S
+    assert 'line 4 in <module>' in done.stderr     # the stalled main thread's stack
 
 
 def test_a_teardown_that_ends_in_time_keeps_the_process():

@@ -20,7 +20,9 @@ left is DDS's teardown, which has been seen to stall under load: a plant,
 its summary printed, still running 30 s after the stop.  A watchdog
 (:func:`end_teardown_within`) then ends the process with the run's status
 after ``TEARDOWN_S``, with every thread's stack in the log, before a
-launcher's SIGKILL would take the status away.
+launcher's SIGKILL would take the status away.  A stall that holds the GIL
+starves that watchdog; faulthandler then ends the process ``BACKSTOP_S``
+later with status 1 and the stacks, through interpreter exit too.
 
 A node that cannot start prints one line saying why and exits 2.
 """
@@ -45,6 +47,10 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # Below ros2 launch's 5 s between its SIGINT and its SIGTERM (which a closing node
 # ignores), and its SIGKILL 5 s after that; a teardown takes well under 1 s.
 TEARDOWN_S = 3.0
+# The watchdog is a Python thread, which a teardown stalled inside C code with the
+# GIL held starves; faulthandler's own thread needs no GIL.  It ends the process
+# this much later, with status 1 and every stack, through interpreter exit too.
+BACKSTOP_S = 4.0
 
 
 class StopRequest:
@@ -174,8 +180,14 @@ def end_teardown_within(seconds: float, prog: str, status: list) -> threading.Ti
 
     It prints one line and every thread's stack to stderr first.  The caller
     cancels it when the teardown is done.  A teardown that stalls while
-    holding the GIL holds this timer back as well.
+    holding the GIL holds this timer back as well, so faulthandler is armed
+    to end the process ``BACKSTOP_S`` later (status 1, every stack).  That
+    one stays armed through interpreter exit, where a stall would otherwise
+    wait for a launcher's SIGKILL: call this only in a process that is
+    about to end.
     """
+    faulthandler.dump_traceback_later(seconds + BACKSTOP_S, exit=True, file=sys.stderr)
+
     def _end():
         print(f'{prog}: DDS teardown still running {seconds:g} s after the node closed; '
               f'exiting without it (status {status[0]}); stacks follow', file=sys.stderr,
