@@ -84,6 +84,24 @@ def test_integrating_loop_gives_back_S_and_J(S, J):
     assert r.linear_model['integrator_gain_per_s'] == pytest.approx(0.05, rel=0.3)
 
 
+# chi-square, one degree of freedom, 95 %: J = 0 nested in J free
+CHI2_95_1DOF = 3.841
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_the_slip_jump_is_tested_against_a_deadband(seed):
+    # Backlash (J = 0) leaves nothing for a jump to explain; a slip of a
+    # sixth of the band is plain in the same loop.  The J = 0 fit is nested
+    # in the free one, so its ratio is never negative.
+    ratios = []
+    for J in (0.0, 0.5):
+        op, pv = record(3.0, J, seed=seed)
+        d = quantify(op, pv, 1.0).details
+        assert d['deadband_residual_variance'] >= d['residual_variance']
+        ratios.append(d['jump_likelihood_ratio'])
+    assert 0.0 <= ratios[0] < CHI2_95_1DOF < 10 * CHI2_95_1DOF < ratios[1], ratios
+
+
 def test_linear_valve_with_an_oscillating_load_is_not_called_stiction():
     op, pv = record_with_load_sine(1.0, 150.0)
     r = quantify(op, pv, 1.0)

@@ -157,6 +157,10 @@ def _hammerstein(ham: dict) -> list:
         rows.append(['likelihood ratio, sticky vs linear valve',
                      num(d['likelihood_ratio']),
                      f'on {num(d.get("effective_samples"), 4)} effective samples'])
+    if d.get('jump_likelihood_ratio') is not None:
+        rows.append(['likelihood ratio, slip jump vs deadband (J = 0)',
+                     num(d['jump_likelihood_ratio']),
+                     'small: a valve with backlash and no jump explains PV as well'])
     se = d.get('jackknife_se') or {}
     if se:
         rows.append(['jackknife standard error', f'S {num(se.get("S"), 3, "%")}, '

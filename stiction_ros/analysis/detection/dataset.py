@@ -30,11 +30,12 @@ FOOTPRINT_WINDOW = 10
 # 800000-801999, 1000000-1001999, 1300000-1301999 and 1500000-1501999 later ones of
 # 2026-11-26, 1600000-1601999 those up to the stack of 2026-11-27,
 # 1700000-1701999 the stack itself, 1800000-1801999 its sign-symmetric networks,
-# 1900000-1901999 the large network's four views; they are spent.  (2000000-2599999
-# are the networks' corpora.)  CALIBRATION grew from 100000-101499 on 2026-11-27.
+# 1900000-1901999 the large network's four views, 2700000-2701999 the larger
+# calibration set; they are spent.  (2000000-2599999 are the networks' corpora.)
+# CALIBRATION grew from 100000-101499 on 2026-11-27.
 TRAIN = range(0, 4500)
 CALIBRATION = range(100_000, 103_000)
-TEST = range(2_700_000, 2_702_000)
+TEST = range(2_800_000, 2_802_000)
 
 
 def stiction_footprint(sc, rec: dict) -> float:

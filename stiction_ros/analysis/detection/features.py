@@ -29,7 +29,7 @@ FEATURE_NAMES = (
     'pv_noise_share', 'op_noise_share', 'error_lag1', 'error_bias', 'op_ramp_share',
     'op_saturated', 'sp_steps_per_100',
     'ham_variance_ratio', 'ham_log_lr', 'ham_S_rel', 'ham_J_over_S', 'ham_reliable',
-    'oe_ratio', 'oe_S_rel', 'pe_ratio', 'pe_c', 'cnn_logit',
+    'ham_log_jump_lr', 'oe_ratio', 'oe_S_rel', 'pe_ratio', 'pe_c', 'cnn_logit',
 )
 # A coarser Hammerstein search than the one that sizes the band in the
 # report: the detector needs how much a sticky valve explains, not S to 0.2 %.
@@ -90,13 +90,17 @@ def hammerstein_features(op: np.ndarray, pv: np.ndarray, sample_time: float,
     The residual variance against a linear valve (``variance_ratio``, below
     1 when stiction explains PV better) and the likelihood ratio of the two
     (Jelali 2008; Srinivasan et al. 2005) were the strongest single
-    separators on simulated loops; S is relative to OP's range.
+    separators on simulated loops; S is relative to OP's range.  The jump's
+    likelihood ratio (J free against J = 0) is there for backlash, the
+    look-alike the detector confused most with stiction (half the simulated
+    backlash valves of the calibration seeds were flagged).
     """
     from stiction_ros.analysis.hammerstein import quantify
     span = float(np.ptp(op)) or 1.0
     h = quantify(op, pv, sample_time, integrating=integrating, max_delay=HAM_MAX_DELAY,
                  resolution=span / HAM_GRID)
-    lr = h.details.get('likelihood_ratio') if isinstance(h.details, dict) else None
+    d = h.details if isinstance(h.details, dict) else {}
+    lr, jump_lr = d.get('likelihood_ratio'), d.get('jump_likelihood_ratio')
     ratio = h.fit_improvement
     s_val, j_val = h.S, h.J
     return {'ham_variance_ratio': NAN if ratio is None else float(ratio),
@@ -104,7 +108,9 @@ def hammerstein_features(op: np.ndarray, pv: np.ndarray, sample_time: float,
             'ham_S_rel': NAN if s_val is None else float(s_val) / span,
             'ham_J_over_S': (NAN if s_val is None or j_val is None or s_val <= 0
                              else float(j_val) / float(s_val)),
-            'ham_reliable': float(bool(h.reliable))}
+            'ham_reliable': float(bool(h.reliable)),
+            'ham_log_jump_lr': (NAN if jump_lr is None
+                                else float(np.log10(1.0 + max(float(jump_lr), 0.0))))}
 
 
 def extract(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: float,

@@ -131,6 +131,29 @@ class Search:
                 progress(level + 2, self.levels + 3)
         return best
 
+    def deadband(self, best: tuple) -> tuple:
+        """
+        Return the best candidate with J = 0: a valve with a deadband and no slip jump.
+
+        What tells stiction from backlash is the jump, so the fit is redone
+        with J held at zero: S on a grid four times the coarse one over the
+        box, from ``best``'s start state and from rest, every dead time, then
+        refined three levels around the best.  Scored after everything the
+        result is read from, so it changes none of it.
+        """
+        points = 4 * COARSE_POINTS
+        s_ax = np.linspace(0.0, self.s_max, points + 1)
+        found = self.score(s_ax, [0.0], best[4]) + self.score(s_ax, [0.0], self.problem.at_rest())
+        cand = min(found, key=lambda c: c[0])
+        step = self.s_max / points
+        for _ in range(3):
+            ax = np.unique(np.clip(np.linspace(cand[1] - step, cand[1] + step, 2 * REFINE + 1),
+                                   0.0, self.s_max))
+            cand = min([cand] + self.score(ax, [0.0], cand[4], cand[3] - 1, cand[3] + 1),
+                       key=lambda c: c[0])
+            step /= REFINE
+        return cand
+
     def region(self, best: tuple, n_eff: float) -> tuple:
         """Return the pairs inside the 95 % region and the grid steps of the last window."""
         sse_min, S, J, d, start = best
