@@ -2,14 +2,18 @@
 Train the detector's 1-D CNN on simulated loops (``make cnn``; needs PyTorch).
 
     python -m stiction_ros.cli.cnn [--out FILE] [--seeds N] [--epochs E] [--jobs J]
-                                   [--batch B] [--device cpu|cuda]
+                                   [--batch B] [--device cpu|cuda] [--width C]
+                                   [--hidden H] [--dilations D,D,...] [--corpus-file F]
 
 Simulates the network's own corpus (seeds from 2000000, never used by the
 detector's training, calibration or scoring sets), trains the network and
 writes its weights as plain arrays.  After a new network, rebuild the
 detector (``make detector``): the network's logit is one of its figures.
 The calibration seeds' balanced accuracy is printed after each epoch and
-chooses nothing.  Real plant loops are never read.
+chooses nothing; so does the whole-record log loss on the first 2 000
+training records beside it (how far the network fits its corpus beyond what
+it learns).  The shape options default to the shipped networks'; the header
+of the weights keeps the shape.  Real plant loops are never read.
 """
 
 import argparse
@@ -25,7 +29,7 @@ from stiction_ros.cli.text import description, pipe_safe
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    from stiction_ros.analysis.detection.cnn_train import BATCH, CORPUS, EPOCHS
+    from stiction_ros.analysis.detection.cnn_train import ARCH, BATCH, CORPUS, EPOCHS
     p = argparse.ArgumentParser(prog='stiction-cnn', description=description(__doc__))
     p.add_argument('--out', default=str(cnn.DEFAULT_PATH),
                    help='weights file to write (default: the shipped one)')
@@ -37,16 +41,34 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--batch', type=int, default=BATCH, help='records a training step')
     p.add_argument('--device', choices=('cpu', 'cuda'),
                    help='where to train (default: a CUDA GPU if PyTorch sees one)')
+    p.add_argument('--width', type=int, default=ARCH.width, help='channels of every layer')
+    p.add_argument('--hidden', type=int, default=ARCH.hidden, help='units of the hidden layer')
+    p.add_argument('--dilations', type=_dilations, default=ARCH.dilations,
+                   help='dilation of each residual layer, comma-separated (default: %(default)s)')
+    p.add_argument('--corpus-file',
+                   help='keep the simulated corpus here, or read it if it holds the same seeds '
+                        '(several network shapes on one corpus)')
     return p
+
+
+def _dilations(text: str) -> tuple:
+    try:
+        out = tuple(int(v) for v in text.split(','))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'not a comma-separated list of integers: {text!r}')
+    if not out or min(out) < 1 or max(out) > cnn.MAX_DILATION:
+        raise argparse.ArgumentTypeError(f'dilations must be 1-{cnn.MAX_DILATION}: {text!r}')
+    return out
 
 
 @pipe_safe
 def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
-    if args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1:
-        print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1 and 1 job',
-              file=sys.stderr)
+    if (args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1
+            or args.width < 1 or args.hidden < 1):
+        print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1, 1 job, '
+              '1 channel and 1 hidden unit', file=sys.stderr)
         return 2
     # Only looked up here: a parent holding torch's thread pool makes the
     # corpus workers it forks ten times slower.
@@ -54,18 +76,28 @@ def main(argv=None) -> int:
         print('stiction-cnn: error: PyTorch is needed to train the network: '
               '.venv/bin/pip install -r requirements/train.txt', file=sys.stderr)
         return 2
-    from stiction_ros.analysis.detection.cnn_train import CORPUS, corpus, export_error, \
-        to_model, train_cnn
+    from stiction_ros.analysis.detection.cnn_train import Arch, CORPUS, corpus, corpus_file, \
+        export_error, to_model, train_cnn
 
     def say(m):
         print(m, file=sys.stderr, flush=True)
     seeds = range(CORPUS.start, CORPUS.start + args.seeds)
     say(f'corpus: seeds {seeds.start}-{seeds.stop - 1}')
-    data = corpus(seeds, args.jobs, say)
+    if args.corpus_file:
+        try:
+            data = corpus_file(seeds, args.corpus_file, args.jobs, say)
+        except ValueError as err:
+            print(f'stiction-cnn: error: {err}', file=sys.stderr)
+            return 2
+    else:
+        data = corpus(seeds, args.jobs, say)
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')
     check = corpus(dataset.CALIBRATION, args.jobs, say)
-    net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device)
+    arch = Arch(args.width, args.hidden, args.dilations)
+    say(f'network: {arch.width} channels, {arch.hidden} hidden units, dilations '
+        f'{",".join(map(str, arch.dilations))}')
+    net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device, arch)
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
             'corpus_seeds': [seeds.start, seeds.stop], 'records': int(len(data['y'])),
             'sticky_share': round(float(data['y'].mean()), 4),

@@ -13,6 +13,8 @@ are left out here too.
 """
 
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
 import time
 
 import numpy as np
@@ -29,6 +31,30 @@ CROP = 500
 BATCH = 64
 PEAK_LR = 2e-3
 SEED = 0
+# Training records read whole after each epoch, beside the check set.
+SEEN_RECORDS = 2000
+
+
+@dataclass(frozen=True)
+class Arch:
+    """The network's shape: channels, hidden units and the dilation of each residual layer."""
+
+    width: int = WIDTH
+    hidden: int = HIDDEN
+    dilations: tuple = DILATIONS
+
+    def __post_init__(self):
+        if self.width < 1 or self.hidden < 1 or not self.dilations:
+            raise ValueError(f'a network needs channels, hidden units and layers: {self}')
+        if any(int(d) < 1 for d in self.dilations):
+            raise ValueError(f'dilations must be 1 or more: {self.dilations}')
+
+    def to_json(self) -> dict:
+        """Return the shape as plain JSON types (the weights file's header keeps it)."""
+        return {**asdict(self), 'dilations': [int(d) for d in self.dilations]}
+
+
+ARCH = Arch()
 
 
 def _record(seed: int):
@@ -69,18 +95,48 @@ def corpus(seeds, jobs: int = 2, say=print) -> dict:
             'y': np.array([r[2] for r in recs]), 'integ': np.array([r[3] for r in recs])}
 
 
-def _network():
+def corpus_file(seeds, path: str | Path, jobs: int = 2, say=print) -> dict:
+    """
+    Return :func:`corpus` of ``seeds``: read from ``path`` if it holds them, else kept there.
+
+    One simulated corpus then serves several trainings (network shapes
+    compared on the same records, one GPU lease).  A file of other seeds
+    is an error, not silently replaced.
+    """
+    path = Path(path)
+    want = np.array([seeds[0], seeds[-1] + 1, len(seeds)], dtype=np.int64)
+    if path.exists():
+        with np.load(path) as f:
+            got = f['seeds'] if 'seeds' in f.files else None
+            if got is None or not np.array_equal(got, want):
+                raise ValueError(f'{path} holds another corpus than seeds {seeds[0]}-{seeds[-1]}; '
+                                 'remove it or name another file')
+            data = {k: f[k] for k in ('seed', 'x', 'off', 'y', 'integ')}
+        say(f'  corpus: {len(data["y"])} records read from {path}')
+        return data
+    data = corpus(seeds, jobs, say)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    part = path.with_name(path.name + '.part')
+    with open(part, 'wb') as f:
+        np.savez(f, seeds=want, **data)
+    part.replace(path)
+    return data
+
+
+def _network(arch: Arch = ARCH):
     import torch
     from torch import nn
 
     class Net(nn.Module):
         def __init__(self):
             super().__init__()
-            self.inp = nn.Conv1d(N_CHANNELS, WIDTH, 7, padding=3)
-            self.convs = nn.ModuleList([nn.Conv1d(WIDTH, WIDTH, 5, dilation=d, padding=2 * d)
-                                        for d in DILATIONS])
-            self.fc1 = nn.Linear(2 * WIDTH + 1, HIDDEN)
-            self.fc2 = nn.Linear(HIDDEN, 1)
+            w = arch.width
+            self.dilations = tuple(int(d) for d in arch.dilations)
+            self.inp = nn.Conv1d(N_CHANNELS, w, 7, padding=3)
+            self.convs = nn.ModuleList([nn.Conv1d(w, w, 5, dilation=d, padding=2 * d)
+                                        for d in self.dilations])
+            self.fc1 = nn.Linear(2 * w + 1, arch.hidden)
+            self.fc2 = nn.Linear(arch.hidden, 1)
 
         def forward(self, x, integ):
             h = torch.relu(self.inp(x))
@@ -94,11 +150,11 @@ def _network():
 def to_model(net, meta: dict) -> CnnModel:
     """Return the NumPy :class:`CnnModel` of a trained network."""
     sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in net.state_dict().items()}
-    n = len(DILATIONS)
+    n = len(net.dilations)
     return CnnModel(sd['inp.weight'], sd['inp.bias'],
                     np.stack([sd[f'convs.{i}.weight'] for i in range(n)]),
                     np.stack([sd[f'convs.{i}.bias'] for i in range(n)]),
-                    np.array(DILATIONS, dtype=np.int32), sd['fc1.weight'], sd['fc1.bias'],
+                    np.array(net.dilations, dtype=np.int32), sd['fc1.weight'], sd['fc1.bias'],
                     sd['fc2.weight'], sd['fc2.bias'], meta)
 
 
@@ -122,6 +178,20 @@ def _logits(net, data: dict) -> np.ndarray:
     return out
 
 
+def balanced_log_loss(logits: np.ndarray, y: np.ndarray) -> float:
+    """Return the cross-entropy of ``logits`` with each class weighted half."""
+    y = np.asarray(y, dtype=bool)
+    z = np.asarray(logits, dtype=np.float64)
+    return float(0.5 * np.logaddexp(0.0, -z[y]).mean() + 0.5 * np.logaddexp(0.0, z[~y]).mean())
+
+
+def subset(data: dict, count: int) -> dict:
+    """Return the first ``count`` records of a corpus."""
+    off = data['off'][:count + 1]
+    return {'seed': data['seed'][:count], 'x': data['x'][:, :off[-1]], 'off': off,
+            'y': data['y'][:count], 'integ': data['integ'][:count]}
+
+
 def cut_windows(xt, starts: np.ndarray, width: int = CROP):
     """
     Return the windows ``xt[:, s:s + width]`` for each start, shape (starts, channels, width).
@@ -136,7 +206,7 @@ def cut_windows(xt, starts: np.ndarray, width: int = CROP):
 
 
 def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print,
-              batch: int = BATCH, device: str | None = None):
+              batch: int = BATCH, device: str | None = None, arch: Arch = ARCH):
     """
     Return the trained torch network and its figures.
 
@@ -144,15 +214,16 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
     cross-entropy with the sticky class weighted to balance, random windows
     of ``CROP`` samples, ``batch`` records a step.  The corpus is copied to
     ``device`` once (default: a CUDA GPU if there is one) and the windows
-    are cut there.  ``check``: a held-out set whose balanced accuracy is
-    reported after each epoch (reported only; nothing is chosen on it).
+    are cut there.  ``check``: a held-out set whose balanced accuracy and
+    loss are reported after each epoch (reported only; nothing is chosen on
+    it).  ``arch``: the network's shape (default: the shipped networks').
     """
     import torch
     from torch import nn
     torch.manual_seed(SEED)
     rng = np.random.default_rng(SEED)
     dev = _device(device)
-    net = _network().to(dev)
+    net = _network(arch).to(dev)
     x, off, y, integ = data['x'], data['off'], data['y'], data['integ']
     n = len(y)
     if n < batch or y.all() or not y.any():
@@ -166,7 +237,8 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, PEAK_LR, total_steps=steps)
     lossf = nn.BCEWithLogitsLoss(
         pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1), device=dev))
-    t0, history = time.perf_counter(), []
+    t0, history, losses = time.perf_counter(), [], []
+    seen = subset(data, min(n, SEEN_RECORDS))
     for epoch in range(epochs):
         perm, total = rng.permutation(n), 0.0
         for b in range(n // batch):
@@ -188,11 +260,17 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
             lg = _logits(net, check)
             ba = 0.5 * ((lg[check['y']] > 0).mean() + (lg[~check['y']] <= 0).mean())
             history.append(round(float(ba), 4))
-            line += f', held-out balanced accuracy {ba:.4f}'
+            # Whole records on both sides: a gap says the network learns its
+            # corpus rather than stiction; none says more records will not help.
+            losses.append([round(balanced_log_loss(_logits(net, seen), seen['y']), 4),
+                           round(balanced_log_loss(lg, check['y']), 4)])
+            line += (f', held-out balanced accuracy {ba:.4f}, whole-record log loss '
+                     f'{losses[-1][0]:.4f} seen / {losses[-1][1]:.4f} held out')
         say(f'{line} ({time.perf_counter() - t0:.0f} s)')
-    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': PEAK_LR,
+    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': PEAK_LR, 'arch': arch.to_json(),
                  'train_s': round(time.perf_counter() - t0, 1),
-                 'check_balanced_accuracy': history, 'torch': torch.__version__,
+                 'check_balanced_accuracy': history, 'log_loss_seen_held_out': losses,
+                 'torch': torch.__version__,
                  'device': (torch.cuda.get_device_name(dev) if dev.type == 'cuda'
                             else f'cpu, {torch.get_num_threads()} threads')}
 

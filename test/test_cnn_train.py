@@ -1,0 +1,85 @@
+"""Training the detector's networks: shapes, the kept corpus, the loss it reports, the export."""
+
+import numpy as np
+import pytest
+
+from stiction_ros.analysis.detection import cnn
+from stiction_ros.analysis.detection.cnn_train import ARCH, Arch, balanced_log_loss, \
+    corpus_file, subset
+
+
+def test_the_default_shape_is_the_shipped_networks():
+    for path in (cnn.DEFAULT_PATH, cnn.DEFAULT_PATH.with_name('stiction_cnn_large.npz')):
+        m = cnn.load(path)
+        assert m.inp_w.shape[0] == ARCH.width
+        assert m.fc1_b.shape[0] == ARCH.hidden
+        assert tuple(int(d) for d in m.dilations) == ARCH.dilations
+
+
+@pytest.mark.parametrize('bad', [{'width': 0}, {'hidden': 0}, {'dilations': ()},
+                                 {'dilations': (1, 0)}])
+def test_a_shape_that_cannot_be_built_is_refused(bad):
+    with pytest.raises(ValueError):
+        Arch(**bad)
+
+
+def test_the_balanced_log_loss_weighs_each_class_half():
+    y = np.array([True, False, False, False])
+    assert balanced_log_loss(np.zeros(4), y) == pytest.approx(np.log(2.0))
+    z = np.array([2.0, -1.0, 0.5, -3.0])
+    # Repeating the healthy records changes nothing: each class counts half.
+    assert balanced_log_loss(np.r_[z, z[1:]], np.r_[y, y[1:]]) == pytest.approx(
+        balanced_log_loss(z, y))
+    # A confident wrong answer costs more than a hesitant one.
+    assert balanced_log_loss(np.array([-5.0, -1.0]), np.array([True, False])) > \
+        balanced_log_loss(np.array([-0.5, -1.0]), np.array([True, False]))
+
+
+def test_a_kept_corpus_is_read_back_the_same_and_another_seed_range_is_refused(tmp_path):
+    seeds = range(2_000_000, 2_000_200)
+    path = tmp_path / 'corpus.npz'
+    said = []
+    made = corpus_file(seeds, path, jobs=1, say=said.append)
+    assert path.exists() and not path.with_name('corpus.npz.part').exists()
+    read = corpus_file(seeds, path, jobs=1, say=said.append)
+    assert 'read from' in said[-1]
+    for k in ('seed', 'x', 'off', 'y', 'integ'):
+        np.testing.assert_array_equal(made[k], read[k])
+    with pytest.raises(ValueError, match='another corpus'):
+        corpus_file(range(2_000_000, 2_000_300), path, jobs=1, say=said.append)
+    part = subset(made, 3)
+    assert part['x'].shape[1] == part['off'][-1] == made['off'][3]
+    assert len(part['y']) == 3
+
+
+def test_a_network_of_another_shape_exports_the_logit_pytorch_gives(tmp_path):
+    torch = pytest.importorskip('torch')   # requirements/train.txt; CI runs without it
+    from stiction_ros.analysis.detection.cnn_train import _network, to_model
+    arch = Arch(width=12, hidden=5, dilations=(1, 3, 9))
+    torch.manual_seed(1)
+    net = _network(arch)
+    net.eval()
+    model = to_model(net, {'arch': arch.to_json()})
+    cnn.save(tmp_path / 'w12.npz', {k: getattr(model, k) for k in cnn.ARRAYS}, model.meta)
+    back = cnn.load(tmp_path / 'w12.npz')
+    rng = np.random.default_rng(5)
+    for n, integ in ((9, True), (640, False)):
+        x = cnn.channels(np.cumsum(rng.normal(size=n)), rng.normal(size=n), None)
+        with torch.no_grad():
+            ref = net(torch.from_numpy(x)[None], torch.tensor([float(integ)])).item()
+        assert abs(ref - back.logit(x, integ)) < 1e-4
+
+
+@pytest.mark.parametrize('argv,message', [
+    (['--dilations', '1,x'], 'comma-separated'),
+    (['--dilations', '1,0'], 'dilations must be'),
+    (['--width', '0'], '1 channel'),
+])
+def test_the_training_command_refuses_a_shape_it_cannot_build(argv, message, capsys):
+    from stiction_ros.cli.cnn import main
+    try:
+        rc = main(argv + ['--out', '/nonexistent/x.npz'])
+    except SystemExit as stop:
+        rc = stop.code
+    assert rc == 2
+    assert message in capsys.readouterr().err
