@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from stiction_ros.analysis.detection import cnn, dataset, FEATURE_NAMES, load_model, stack
+from stiction_ros.analysis.detection import cnn, dataset, deadband_like, FEATURE_NAMES, \
+    load_model, stack
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
@@ -122,6 +123,10 @@ def main(argv=None):
         say('the large network on the simulated test set')
         test['large_logit'] = stack.seed_logits(test['seed'], args.jobs,
                                                 cache=args.cache or None)
+    say('sticky test records that OP and PV cannot tell from a deadband (left out, counted)')
+    whole = deadband_like.mark(test, args.jobs, cache=args.cache or None)
+    test = deadband_like.leave_out(whole)
+    called = model.probability(whole['x'], whole.get('large_logit')) >= 0.5
     study = {
         'date': datetime.date.today().isoformat(),
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
@@ -136,6 +141,9 @@ def main(argv=None):
         'sim_reliability': reliability(test['y'], model.probability(
             test['x'], test.get('large_logit'))) if len(test['y']) else None,
         'sim_skipped': test['skipped'], 'sim_records': int(len(test['y'])),
+        # The definition before 2026-11-27 counted deadband-like records as sticky.
+        'sim_with_deadband_like': score(whole['y'], list(called)),
+        'sim_deadband_like_called': int(called[whole['deadband_like']].sum()),
         'sim_seconds': round(test['seconds'], 1), 'sim_jobs': args.jobs,
         'sim_seeds': [dataset.TEST.start, dataset.TEST.start + args.sim_test],
         'cases': [{'file': c['file'], 'label': c['label'], 'group': c['group'],
