@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.detection import detect, load_model, model_file
-from stiction_ros.analysis.detection.detect import leaned_on
+from stiction_ros.analysis.detection.detect import HELD_ERRORS, leaned_on, RAMP_R2
 from stiction_ros.analysis.detection.resolve import (
     cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
 from stiction_ros.analysis.detection.stuck import stuck_periods
@@ -136,6 +136,23 @@ def test_a_stuck_valve_leaves_a_straight_op_ramp_on_a_held_error():
     assert min(st.log_offset for st in sticky) > max(st.log_offset for st in linear)
     empty = stuck_periods(np.zeros(300), np.zeros(300), None)
     assert not empty.stuck and np.isnan(empty.ramp_r2) and np.isnan(empty.log_offset)
+
+
+def test_a_steady_load_drift_leaves_the_ramp_of_a_stuck_valve_and_the_evidence_says_so():
+    # A linear valve under PI control against a load that climbs at a steady
+    # rate: the error settles to a constant that integral action turns into a
+    # straight OP ramp while PV stays flat, which is what a stuck valve leaves.
+    loads = [(float(t), 0.02) for t in np.arange(500.0, 3500.0, 10.0)]
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'valve': {'model': 'linear'}, 'controller.Kc': 0.2, 'controller.Ti': 60.0,
+        'controller.setpoint': {'type': 'steps', 'steps': [[0.0, 0.0]]},
+        'plant.disturbance_steps': loads, 'noise': {'pv_std': 0.02, 'seed': 1}})
+    rec = simulate_loop(cfg, 4000.0)
+    st = stuck_periods(rec['op'], rec['pv'], rec['sp'])
+    assert st.stuck and np.ptp(rec['mv_true'][st.stuck[0][0]:st.stuck[0][1]]) > 0.5
+    assert st.ramp_r2 > RAMP_R2 and 10.0 ** st.log_offset - 1.0 > HELD_ERRORS
+    d = detect(rec['op'], rec['pv'], rec['sp'], 1.0)
+    assert any('load drifting at a steady rate' in line for line in d.evidence), d.evidence
 
 
 def _tiny_model(tmp_path, seed=0):

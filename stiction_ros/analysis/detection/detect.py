@@ -25,6 +25,10 @@ from stiction_ros.errors import DetectorFileError
 THRESHOLD = 0.5
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
 VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
+# A stuck period's OP this straight, on an error held this many standard
+# errors off zero, is the pattern a steady load drift shares with a stuck valve.
+RAMP_R2 = 0.9
+HELD_ERRORS = 10.0
 # How many figures the evidence names as the ones the trees leaned on.
 LEANED_ON = 3
 
@@ -95,10 +99,19 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
         out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled {travel:.3g} while the '
                    f'valve proxy stayed within its noise')
     if st.stuck:
-        # What tells a stuck valve from a loop holding PV against a drifting
-        # load: integral action on a constant error ramps OP in a straight line.
-        out.append(f'in its stuck periods OP ramped in a line (R^2 {st.ramp_r2:.2f}) on an '
-                   f'error held {10.0 ** st.log_offset - 1.0:.3g} standard errors off zero')
+        # Integral action on a constant error ramps OP in a straight line; a
+        # loop holding PV against a load that wanders has neither.
+        held = 10.0 ** st.log_offset - 1.0
+        line = (f'in its stuck periods OP ramped in a line (R^2 {st.ramp_r2:.2f}) on an '
+                f'error held {held:.3g} standard errors off zero')
+        if st.ramp_r2 >= RAMP_R2 and held >= HELD_ERRORS:
+            # A load drifting at a steady rate leaves the same trace under PI
+            # control (the ramp cancels it): said, so that neither answer reads
+            # as a contradiction of this line.
+            line += (': what a stuck valve leaves, and also a load drifting at a steady rate '
+                     'that the ramp cancels; a slip, or PV answering when OP turns, tells them '
+                     'apart')
+        out.append(line)
     for k, z in sorted(st.slips, key=lambda s: -s[1])[:3]:
         out.append(f'slip at {_t(k, ts)}: the valve proxy jumped {z:.1f} noise widths '
                    f'(no set-point step before it)')
