@@ -83,3 +83,47 @@ def test_the_training_command_refuses_a_shape_it_cannot_build(argv, message, cap
         rc = stop.code
     assert rc == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_corpus_without_deadband_like_records_drops_the_sticky_ones_a_deadband_explains(
+        tmp_path):
+    from stiction_ros.analysis.detection.cnn_train import corpus
+    from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT
+    from stiction_ros.analysis.detection.deadband_like import slip_footprint
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    seeds = range(2_000_000, 2_000_150)
+    whole = corpus(seeds, jobs=1, say=lambda m: None)
+    lean = corpus(seeds, jobs=1, say=lambda m: None, without_deadband_like=True)
+    dropped = sorted(set(whole['seed']) - set(lean['seed']))
+    assert set(lean['seed']) <= set(whole['seed']) and dropped
+    for seed in whole['seed'][whole['y']]:
+        sc = draw_scenario(int(seed))
+        # The physics of the split: what a slip adds over the nearest deadband.
+        assert (slip_footprint(sc, simulate(sc)) < MIN_FOOTPRINT) == (seed in dropped)
+    assert set(dropped) <= set(whole['seed'][whole['y']])   # healthy records all stay
+    path = tmp_path / 'c.npz'
+    corpus_file(seeds, path, jobs=1, say=lambda m: None)
+    with pytest.raises(ValueError, match='without deadband-like records'):
+        corpus_file(seeds, path, jobs=1, say=lambda m: None, without_deadband_like=True)
+
+
+def test_starting_weights_go_into_the_network_unchanged_and_another_shape_is_refused():
+    pytest.importorskip('torch')   # requirements/train.txt; CI runs without it
+    from stiction_ros.analysis.detection.cnn_train import _network, load_weights, to_model
+    large = cnn.load(cnn.DEFAULT_PATH.with_name('stiction_cnn_large.npz'))
+    net = _network()
+    load_weights(net, large)
+    back = to_model(net, {})
+    for k in cnn.ARRAYS:
+        np.testing.assert_array_equal(getattr(back, k), getattr(large, k))
+    with pytest.raises(ValueError, match='another network shape'):
+        load_weights(_network(Arch(width=8)), large)
+
+
+def test_the_training_command_refuses_the_detectors_own_seeds(capsys):
+    from stiction_ros.analysis.detection import dataset
+    from stiction_ros.cli.cnn import main
+    for first in (dataset.TRAIN.start, dataset.CALIBRATION.start + 10, dataset.TEST.start):
+        assert main(['--first-seed', str(first), '--seeds', '200',
+                     '--out', '/nonexistent/x.npz']) == 2
+        assert 'overlap' in capsys.readouterr().err

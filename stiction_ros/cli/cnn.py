@@ -4,6 +4,8 @@ Train the detector's 1-D CNN on simulated loops (``make cnn``; needs PyTorch).
     python -m stiction_ros.cli.cnn [--out FILE] [--seeds N] [--epochs E] [--jobs J]
                                    [--batch B] [--device cpu|cuda] [--width C]
                                    [--hidden H] [--dilations D,D,...] [--corpus-file F]
+                                   [--first-seed S] [--without-deadband-like]
+                                   [--init FILE] [--peak-lr LR]
 
 Simulates the network's own corpus (seeds from 2000000, never used by the
 detector's training, calibration or scoring sets), trains the network and
@@ -13,7 +15,9 @@ The calibration seeds' balanced accuracy is printed after each epoch and
 chooses nothing; so does the whole-record log loss on the first 2 000
 training records beside it (how far the network fits its corpus beyond what
 it learns).  The shape options default to the shipped networks'; the header
-of the weights keeps the shape.  Real plant loops are never read.
+of the weights keeps the shape.  ``--init`` continues from the weights of a
+network (``--first-seed``: on a corpus of other seeds); the header names the
+starting file.  Real plant loops are never read.
 """
 
 import argparse
@@ -25,11 +29,12 @@ import sys
 
 from stiction_ros.analysis.detection import cnn, dataset
 from stiction_ros.cli.text import description, pipe_safe
+from stiction_ros.errors import DetectorFileError
 
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    from stiction_ros.analysis.detection.cnn_train import ARCH, BATCH, CORPUS, EPOCHS
+    from stiction_ros.analysis.detection.cnn_train import ARCH, BATCH, CORPUS, EPOCHS, PEAK_LR
     p = argparse.ArgumentParser(prog='stiction-cnn', description=description(__doc__))
     p.add_argument('--out', default=str(cnn.DEFAULT_PATH),
                    help='weights file to write (default: the shipped one)')
@@ -48,6 +53,16 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--corpus-file',
                    help='keep the simulated corpus here, or read it if it holds the same seeds '
                         '(several network shapes on one corpus)')
+    p.add_argument('--first-seed', type=int, default=CORPUS.start,
+                   help='first corpus seed (default: %(default)s); the detector seeds (training, '
+                        'calibration, test) are refused')
+    p.add_argument('--without-deadband-like', action='store_true',
+                   help='leave out the sticky records OP and PV cannot tell from a deadband, '
+                        'as the detector calibration and scoring do')
+    p.add_argument('--init', metavar='FILE',
+                   help='start from the weights of this network (same shape), not at random')
+    p.add_argument('--peak-lr', type=float, default=PEAK_LR,
+                   help='peak of the one-cycle learning rate (default: %(default)s)')
     return p
 
 
@@ -66,40 +81,66 @@ def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
     if (args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1
-            or args.width < 1 or args.hidden < 1):
+            or args.width < 1 or args.hidden < 1 or args.first_seed < 0
+            or not 0 < args.peak_lr < 1):
         print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1, 1 job, '
-              '1 channel and 1 hidden unit', file=sys.stderr)
+              '1 channel and 1 hidden unit; a first seed of 0 or more; a peak learning rate '
+              'in (0, 1)', file=sys.stderr)
         return 2
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    for name in ('TRAIN', 'CALIBRATION', 'TEST'):
+        used = getattr(dataset, name)
+        if seeds.start < used.stop and used.start < seeds.stop:
+            print(f'stiction-cnn: error: seeds {seeds.start}-{seeds.stop - 1} overlap the '
+                  f"detector's {name.lower()} seeds {used.start}-{used.stop - 1}",
+                  file=sys.stderr)
+            return 2
     # Only looked up here: a parent holding torch's thread pool makes the
     # corpus workers it forks ten times slower.
     if importlib.util.find_spec('torch') is None:
         print('stiction-cnn: error: PyTorch is needed to train the network: '
               '.venv/bin/pip install -r requirements/train.txt', file=sys.stderr)
         return 2
-    from stiction_ros.analysis.detection.cnn_train import Arch, CORPUS, corpus, corpus_file, \
+    from stiction_ros.analysis.detection.cnn_train import Arch, corpus, corpus_file, \
         export_error, to_model, train_cnn
 
     def say(m):
         print(m, file=sys.stderr, flush=True)
-    seeds = range(CORPUS.start, CORPUS.start + args.seeds)
-    say(f'corpus: seeds {seeds.start}-{seeds.stop - 1}')
+    init = None
+    if args.init:
+        try:
+            init = cnn.load(args.init)
+        except DetectorFileError as err:
+            print(f'stiction-cnn: error: {err}', file=sys.stderr)
+            return 2
+    say(f'corpus: seeds {seeds.start}-{seeds.stop - 1}'
+        f'{", deadband-like sticky records left out" * args.without_deadband_like}')
     if args.corpus_file:
         try:
-            data = corpus_file(seeds, args.corpus_file, args.jobs, say)
+            data = corpus_file(seeds, args.corpus_file, args.jobs, say,
+                               args.without_deadband_like)
         except ValueError as err:
             print(f'stiction-cnn: error: {err}', file=sys.stderr)
             return 2
     else:
-        data = corpus(seeds, args.jobs, say)
+        data = corpus(seeds, args.jobs, say, args.without_deadband_like)
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')
     check = corpus(dataset.CALIBRATION, args.jobs, say)
     arch = Arch(args.width, args.hidden, args.dilations)
     say(f'network: {arch.width} channels, {arch.hidden} hidden units, dilations '
         f'{",".join(map(str, arch.dilations))}')
-    net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device, arch)
+    try:
+        net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device, arch,
+                                 init, args.peak_lr)
+    except ValueError as err:
+        print(f'stiction-cnn: error: {err}', file=sys.stderr)
+        return 2
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
             'corpus_seeds': [seeds.start, seeds.stop], 'records': int(len(data['y'])),
+            'without_deadband_like': bool(args.without_deadband_like),
+            'init': (None if init is None else
+                     {'file': Path(args.init).name, 'sha256': init.sha256}),
             'sticky_share': round(float(data['y'].mean()), 4),
             'date': datetime.date.today().isoformat(), 'figures': figures}
     model = to_model(net, meta)

@@ -14,6 +14,7 @@ are left out here too.
 
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
+from functools import partial
 from pathlib import Path
 import time
 
@@ -57,7 +58,7 @@ class Arch:
 ARCH = Arch()
 
 
-def _record(seed: int):
+def _record(seed: int, without_deadband_like: bool = False):
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
     from stiction_ros.analysis.detection.resolve import judgeable
     from stiction_ros.sim.corpus import draw_scenario, simulate
@@ -67,14 +68,26 @@ def _record(seed: int):
         return None
     if not judgeable(rec['op'], rec['pv'], sc.sample_time, rec['sp']).ok:
         return None
+    if sc.label and without_deadband_like:
+        # Checked last: 27 deadband runs, the dearest test, on judged records only.
+        from stiction_ros.analysis.detection.deadband_like import slip_footprint
+        if slip_footprint(sc, rec) < MIN_FOOTPRINT:
+            return None
     return seed, channels(rec['op'], rec['pv'], rec['sp']), bool(sc.label), bool(sc.integrating)
 
 
-def corpus(seeds, jobs: int = 2, say=print) -> dict:
-    """Return the network inputs of ``seeds``: ``x`` (5, total) with record offsets ``off``."""
+def corpus(seeds, jobs: int = 2, say=print, without_deadband_like: bool = False) -> dict:
+    """
+    Return the network inputs of ``seeds``: ``x`` (5, total) with record offsets ``off``.
+
+    ``without_deadband_like``: leave out the sticky records whose slip moves
+    PV by less than its noise against the nearest deadband, as the detector's
+    scoring and calibration do (:mod:`deadband_like`).
+    """
     t0, recs = time.perf_counter(), []
+    draw = partial(_record, without_deadband_like=without_deadband_like)
     with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
-        for i, r in enumerate(pool.map(_record, seeds, chunksize=64), 1):
+        for i, r in enumerate(pool.map(draw, seeds, chunksize=64), 1):
             if r is not None:
                 recs.append(r)
             if i % 5000 == 0 or i == len(seeds):
@@ -95,7 +108,8 @@ def corpus(seeds, jobs: int = 2, say=print) -> dict:
             'y': np.array([r[2] for r in recs]), 'integ': np.array([r[3] for r in recs])}
 
 
-def corpus_file(seeds, path: str | Path, jobs: int = 2, say=print) -> dict:
+def corpus_file(seeds, path: str | Path, jobs: int = 2, say=print,
+                without_deadband_like: bool = False) -> dict:
     """
     Return :func:`corpus` of ``seeds``: read from ``path`` if it holds them, else kept there.
 
@@ -104,17 +118,19 @@ def corpus_file(seeds, path: str | Path, jobs: int = 2, say=print) -> dict:
     is an error, not silently replaced.
     """
     path = Path(path)
-    want = np.array([seeds[0], seeds[-1] + 1, len(seeds)], dtype=np.int64)
+    want = np.array([seeds[0], seeds[-1] + 1, len(seeds)] + [1] * without_deadband_like,
+                    dtype=np.int64)
     if path.exists():
         with np.load(path) as f:
             got = f['seeds'] if 'seeds' in f.files else None
             if got is None or not np.array_equal(got, want):
-                raise ValueError(f'{path} holds another corpus than seeds {seeds[0]}-{seeds[-1]}; '
+                raise ValueError(f'{path} holds another corpus than seeds {seeds[0]}-{seeds[-1]}'
+                                 f'{" without deadband-like records" * without_deadband_like}; '
                                  'remove it or name another file')
             data = {k: f[k] for k in ('seed', 'x', 'off', 'y', 'integ')}
         say(f'  corpus: {len(data["y"])} records read from {path}')
         return data
-    data = corpus(seeds, jobs, say)
+    data = corpus(seeds, jobs, say, without_deadband_like)
     path.parent.mkdir(parents=True, exist_ok=True)
     part = path.with_name(path.name + '.part')
     with open(part, 'wb') as f:
@@ -145,6 +161,22 @@ def _network(arch: Arch = ARCH):
             pooled = torch.cat([h.mean(-1), h.amax(-1), integ[:, None]], 1)
             return self.fc2(torch.relu(self.fc1(pooled)))[:, 0]
     return Net()
+
+
+def load_weights(net, model: CnnModel) -> None:
+    """Copy the weights of ``model`` into the torch network ``net`` (:func:`to_model` undone)."""
+    import torch
+    shape = (tuple(int(d) for d in model.dilations), model.inp_w.shape, model.fc1_w.shape)
+    if shape != (net.dilations, tuple(net.inp.weight.shape), tuple(net.fc1.weight.shape)):
+        raise ValueError(f'the starting weights are of another network shape: dilations '
+                         f'{list(shape[0])}, input {shape[1]}, hidden {shape[2]}')
+    sd = {'inp.weight': model.inp_w, 'inp.bias': model.inp_b,
+          'fc1.weight': model.fc1_w, 'fc1.bias': model.fc1_b,
+          'fc2.weight': model.fc2_w, 'fc2.bias': model.fc2_b}
+    for i in range(len(net.dilations)):
+        sd[f'convs.{i}.weight'], sd[f'convs.{i}.bias'] = model.conv_w[i], model.conv_b[i]
+    net.load_state_dict({k: torch.from_numpy(np.asarray(v, dtype=np.float32))
+                         for k, v in sd.items()})
 
 
 def to_model(net, meta: dict) -> CnnModel:
@@ -206,24 +238,30 @@ def cut_windows(xt, starts: np.ndarray, width: int = CROP):
 
 
 def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print,
-              batch: int = BATCH, device: str | None = None, arch: Arch = ARCH):
+              batch: int = BATCH, device: str | None = None, arch: Arch = ARCH,
+              init: CnnModel | None = None, peak_lr: float = PEAK_LR):
     """
     Return the trained torch network and its figures.
 
-    Adam under a one-cycle learning rate (peak ``PEAK_LR``), binary
+    Adam under a one-cycle learning rate (peak ``peak_lr``), binary
     cross-entropy with the sticky class weighted to balance, random windows
     of ``CROP`` samples, ``batch`` records a step.  The corpus is copied to
     ``device`` once (default: a CUDA GPU if there is one) and the windows
     are cut there.  ``check``: a held-out set whose balanced accuracy and
     loss are reported after each epoch (reported only; nothing is chosen on
     it).  ``arch``: the network's shape (default: the shipped networks').
+    ``init``: start from these weights (a network of the same shape) rather
+    than at random.
     """
     import torch
     from torch import nn
     torch.manual_seed(SEED)
     rng = np.random.default_rng(SEED)
     dev = _device(device)
-    net = _network(arch).to(dev)
+    net = _network(arch)
+    if init is not None:
+        load_weights(net, init)
+    net = net.to(dev)
     x, off, y, integ = data['x'], data['off'], data['y'], data['integ']
     n = len(y)
     if n < batch or y.all() or not y.any():
@@ -234,7 +272,7 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
     it = torch.from_numpy(integ.astype(np.float32)).to(dev)
     opt = torch.optim.Adam(net.parameters(), 1e-3)
     steps = epochs * (n // batch)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, PEAK_LR, total_steps=steps)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, peak_lr, total_steps=steps)
     lossf = nn.BCEWithLogitsLoss(
         pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1), device=dev))
     t0, history, losses = time.perf_counter(), [], []
@@ -267,7 +305,7 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
             line += (f', held-out balanced accuracy {ba:.4f}, whole-record log loss '
                      f'{losses[-1][0]:.4f} seen / {losses[-1][1]:.4f} held out')
         say(f'{line} ({time.perf_counter() - t0:.0f} s)')
-    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': PEAK_LR, 'arch': arch.to_json(),
+    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': peak_lr, 'arch': arch.to_json(),
                  'train_s': round(time.perf_counter() - t0, 1),
                  'check_balanced_accuracy': history, 'log_loss_seen_held_out': losses,
                  'torch': torch.__version__,
