@@ -204,3 +204,24 @@ def test_751_samples_take_well_under_two_seconds():
     r = quantify(op, pv, 1.0)
     assert time.perf_counter() - t0 < 2.0
     assert r.S is not None
+
+
+def test_an_exact_fit_reads_as_no_evidence_not_as_a_math_error():
+    from stiction_ros.analysis.hammerstein.estimate import _likelihood_ratio
+    # A residual sum of squares off the normal equations is 0, or a rounding
+    # error below it, when a fit is exact.
+    assert _likelihood_ratio(100.0, 0.0, 1.0) == 0.0
+    assert _likelihood_ratio(100.0, -1e-18, 1.0) == 0.0
+    assert _likelihood_ratio(100.0, 1.0, 0.0) == 1e300
+    assert _likelihood_ratio(100.0, 2.0, 1.0) == pytest.approx(100.0 * np.log(2.0))
+    # The simulated record that met it: a level whose transmitter froze, on a
+    # Kano valve; the deadband fit (J = 0) left no residual at all.
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(3_101_918)
+    rec = simulate(sc)
+    span = float(np.ptp(rec['op']))
+    d = quantify(rec['op'], rec['pv'], sc.sample_time, integrating=sc.integrating,
+                 max_delay=10, resolution=span / 40).details
+    assert 0.0 <= d['jump_likelihood_ratio'] < 1e300
+    if d['deadband_residual_variance'] <= 0.0:
+        assert d['jump_likelihood_ratio'] == 0.0

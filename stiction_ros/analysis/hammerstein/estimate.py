@@ -125,6 +125,22 @@ def _unusable(problem, op, pv) -> str:
     return ''
 
 
+def _likelihood_ratio(n_eff: float, nested_sse: float, sse: float) -> float:
+    """
+    Return ``n_eff log(nested_sse / sse)``: what the fuller model earns over the nested one.
+
+    A residual sum of squares read off the normal equations can come out 0
+    or a hair below it when a fit is exact.  A nested model that fits
+    exactly leaves the fuller one nothing to earn (0); a fuller one that
+    alone fits exactly earns without bound (1e300).
+    """
+    if nested_sse <= 0:
+        return 0.0
+    if sse <= 0:
+        return 1e300
+    return n_eff * math.log(nested_sse / sse)
+
+
 def quantify(op, pv, sample_time: float, segments=None, integrating: bool = False,
              s_max: float | None = None, progress=None, orders: tuple = (2, 2),
              min_delay: int = 1, max_delay: int | None = None,
@@ -178,10 +194,10 @@ def quantify(op, pv, sample_time: float, segments=None, integrating: bool = Fals
         progress(search.levels + 3, search.levels + 3)
     lin_sse, _, _, lin_delay, _ = search.score([0.0], [0.0], problem.at_rest())[0]
     ratio = sse / lin_sse if lin_sse > 0 else 1.0
-    lr = n_eff * math.log(lin_sse / sse) if sse > 0 else 1e300
+    lr = _likelihood_ratio(n_eff, lin_sse, sse)
     db_sse = search.deadband(best)[0]
     # J > 0 nests J = 0, so a negative ratio is the search missing a valley: none.
-    jump_lr = max(0.0, n_eff * math.log(db_sse / sse)) if sse > 0 else 1e300
+    jump_lr = max(0.0, _likelihood_ratio(n_eff, db_sse, sse))
     details.update({
         'search_box': {'S_max': s_max, 'J_max': s_max, 'resolution': res},
         'residual_variance': sse / problem.n, 'linear_residual_variance': lin_sse / problem.n,
