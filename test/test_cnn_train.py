@@ -9,7 +9,8 @@ from stiction_ros.analysis.detection.cnn_train import ARCH, Arch, balanced_log_l
 
 
 def test_the_default_shape_is_the_shipped_networks():
-    for path in (cnn.DEFAULT_PATH, cnn.DEFAULT_PATH.with_name('stiction_cnn_large.npz')):
+    for name in ('stiction_cnn.npz', 'stiction_cnn_large_base.npz', 'stiction_cnn_large.npz'):
+        path = cnn.DEFAULT_PATH.with_name(name)
         m = cnn.load(path)
         assert m.inp_w.shape[0] == ARCH.width
         assert m.fc1_b.shape[0] == ARCH.hidden
@@ -127,3 +128,14 @@ def test_the_training_command_refuses_the_detectors_own_seeds(capsys):
         assert main(['--first-seed', str(first), '--seeds', '200',
                      '--out', '/nonexistent/x.npz']) == 2
         assert 'overlap' in capsys.readouterr().err
+
+
+def test_the_shipped_large_network_names_the_network_it_was_trained_on_from():
+    base = cnn.load(cnn.DEFAULT_PATH.with_name('stiction_cnn_large_base.npz'))
+    large = cnn.load(cnn.DEFAULT_PATH.with_name('stiction_cnn_large.npz'))
+    assert large.meta['init'] == {'file': 'stiction_cnn_large_base.npz', 'sha256': base.sha256}
+    assert large.meta['without_deadband_like'] is True
+    from stiction_ros.analysis.detection import dataset
+    first, stop = large.meta['corpus_seeds']
+    for used in (dataset.TRAIN, dataset.CALIBRATION, dataset.TEST):
+        assert stop <= used.start or used.stop <= first

@@ -4,12 +4,12 @@ Rebuild the learned stiction detector from simulated loops (``make detector``).
     python -m stiction_ros.cli.detector [--out FILE] [--train N] [--calibration N] [--jobs J]
 
 Draws and simulates the training and calibration records from their seeds
-(``stiction_ros.analysis.detection.dataset``), trains the boosted trees on
-the first, weighs their out-of-fold score with the large network's logit
-(``stiction_ros.analysis.detection.stack``) on the same records, calibrates
-the weighed score's probability on the second, less its sticky records that
-OP and PV cannot tell from a deadband (``deadband_like``), and writes the
-model file.
+(``stiction_ros.analysis.detection.dataset``), leaves out of both the sticky
+records that OP and PV cannot tell from a deadband (``deadband_like``), trains
+the boosted trees on the first, weighs their out-of-fold score with the large
+network's logit (``stiction_ros.analysis.detection.stack``) on the same
+records, calibrates the weighed score's probability on the second, and
+writes the model file.
 The same seeds, code and networks give the same trees, stack and calibration
 (the header keeps the date and timings).  Real plant loops are never read.
 """
@@ -56,6 +56,9 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     ca_seeds = range(dataset.CALIBRATION.start, dataset.CALIBRATION.start + n_cal)
     say(f'training set: {n_train} simulated records (seeds {tr_seeds.start}-{tr_seeds.stop - 1})')
     tr = dataset.build(tr_seeds, jobs, cache=cache)
+    # Taught as sticky, they teach "a deadband is stiction", and backlash is healthy.
+    say('training records that OP and PV cannot tell from a deadband: left out')
+    tr = deadband_like.leave_out(deadband_like.mark(tr, jobs, cache))
     say(f'calibration set: {n_cal} records (seeds {ca_seeds.start}-{ca_seeds.stop - 1})')
     ca = dataset.build(ca_seeds, jobs, cache=cache)
     # The logits are kept under the whole set's seeds; the map is fitted on the
