@@ -92,7 +92,7 @@ def test_a_corpus_without_deadband_like_records_drops_the_sticky_ones_a_deadband
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT
     from stiction_ros.analysis.detection.deadband_like import slip_footprint
     from stiction_ros.sim.corpus import draw_scenario, simulate
-    seeds = range(2_000_000, 2_000_150)
+    seeds = range(2_000_000, 2_000_080)
     whole = corpus(seeds, jobs=1, say=lambda m: None)
     lean = corpus(seeds, jobs=1, say=lambda m: None, without_deadband_like=True)
     dropped = sorted(set(whole['seed']) - set(lean['seed']))
