@@ -119,7 +119,13 @@ def shipped(probe, tmp_path_factory):
                                  extra=['--params-file', str(config_dir() / rel)]),
                       f'{ns}/{node_of(rel)}')
     # 15 processes start at once on a small machine: allow them time.
-    yield {rel: (probe.params(name, timeout=120.0), name) for rel, (_, name) in procs.items()}
+    clients = {rel: (probe.params(name, timeout=120.0), name) for rel, (_, name) in procs.items()}
+    # Services are discovered before a node's executor is free to answer them
+    # (its first samples may still be compiling kernels on a loaded machine):
+    # one answered request from each before any test reads them.
+    for client, _ in clients.values():
+        probe.call(client, lambda c: c.list_parameters([], 0), timeout=60.0)
+    yield clients
     for rel, (proc, name) in procs.items():
         assert stop(proc) == 0, name
 
