@@ -139,3 +139,39 @@ def test_the_shipped_large_network_names_the_network_it_was_trained_on_from():
     first, stop = large.meta['corpus_seeds']
     for used in (dataset.TRAIN, dataset.CALIBRATION, dataset.TEST):
         assert stop <= used.start or used.stop <= first
+
+
+def test_a_training_run_stopped_mid_way_keeps_its_last_epoch_and_a_finished_one_cleans_up(
+        tmp_path):
+    pytest.importorskip('torch')   # requirements/train.txt; CI runs without it
+    import signal
+    import subprocess
+    import sys
+    import time
+    from stiction_ros.cli.cnn import partial_path
+    out = tmp_path / 'tiny.npz'
+    partial = partial_path(out)
+    assert partial.name == 'tiny.partial.npz'
+    argv = [sys.executable, '-m', 'stiction_ros.cli.cnn', '--seeds', '200', '--batch', '16',
+            '--jobs', '2', '--width', '4', '--hidden', '2', '--dilations', '1',
+            '--out', str(out)]
+    # A time limit stops a long run: what it finished is kept, the output is not claimed.
+    run = subprocess.Popen(argv + ['--epochs', '1000'], stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not partial.exists() and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert partial.exists(), run.stderr.read() if run.poll() is not None else 'too slow'
+    finally:
+        run.send_signal(signal.SIGKILL)
+        run.wait()
+    kept = cnn.load(partial)
+    done = kept.meta['figures']['epochs_done']
+    assert 1 <= done < 1000 and kept.meta['figures']['epochs'] == 1000
+    assert len(kept.meta['figures']['check_balanced_accuracy']) == done
+    assert kept.inp_w.shape[0] == 4 and not out.exists()
+    # A finished run writes its output and removes the kept epoch.
+    ok = subprocess.run(argv + ['--epochs', '1'], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert cnn.load(out).meta['figures']['epochs'] == 1 and not partial.exists()

@@ -17,7 +17,10 @@ training records beside it (how far the network fits its corpus beyond what
 it learns).  The shape options default to the shipped networks'; the header
 of the weights keeps the shape.  ``--init`` continues from the weights of a
 network (``--first-seed``: on a corpus of other seeds); the header names the
-starting file.  Real plant loops are never read.
+starting file.  After each epoch the network so far is kept beside the
+output as ``NAME.partial.npz`` (its header says how many epochs it had), and
+removed when the output is written: a run stopped by a time limit keeps
+what it learned.  Real plant loops are never read.
 """
 
 import argparse
@@ -76,6 +79,19 @@ def _dilations(text: str) -> tuple:
     return out
 
 
+def partial_path(out: str | Path) -> Path:
+    """Return where training keeps its last finished epoch beside ``out`` until it ends."""
+    out = Path(out)
+    return out.with_name(f'{out.stem}.partial{out.suffix}')
+
+
+def _write(path: Path, model, meta: dict) -> None:
+    part = path.with_name(path.name + '.part')
+    cnn.save(part, {k: getattr(model, k) for k in cnn.ARRAYS}, meta)
+    part.replace(path)
+    cnn.load(path)
+
+
 @pipe_safe
 def main(argv=None) -> int:
     """Entry point."""
@@ -130,25 +146,32 @@ def main(argv=None) -> int:
     arch = Arch(args.width, args.hidden, args.dilations)
     say(f'network: {arch.width} channels, {arch.hidden} hidden units, dilations '
         f'{",".join(map(str, arch.dilations))}')
-    try:
-        net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device, arch,
-                                 init, args.peak_lr)
-    except ValueError as err:
-        print(f'stiction-cnn: error: {err}', file=sys.stderr)
-        return 2
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
             'corpus_seeds': [seeds.start, seeds.stop], 'records': int(len(data['y'])),
             'without_deadband_like': bool(args.without_deadband_like),
             'init': (None if init is None else
                      {'file': Path(args.init).name, 'sha256': init.sha256}),
             'sticky_share': round(float(data['y'].mean()), 4),
-            'date': datetime.date.today().isoformat(), 'figures': figures}
+            'date': datetime.date.today().isoformat()}
+    out, partial = Path(args.out), partial_path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+
+    def keep(net, figures):
+        # The last finished epoch, so that a run a time limit stops (a GPU
+        # lease) leaves a network to measure or to go on from (--init).
+        kept = {**meta, 'file': partial.name, 'figures': figures}
+        _write(partial, to_model(net, kept), kept)
+    try:
+        net, figures = train_cnn(data, check, args.epochs, say, args.batch, args.device, arch,
+                                 init, args.peak_lr, on_epoch=keep)
+    except ValueError as err:
+        print(f'stiction-cnn: error: {err}', file=sys.stderr)
+        return 2
+    meta['figures'] = figures
     model = to_model(net, meta)
     meta['figures']['max_abs_export_error'] = export_error(net, model, check)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    arrays = {k: getattr(model, k) for k in cnn.ARRAYS}
-    cnn.save(args.out, arrays, meta)
-    cnn.load(args.out)
+    _write(out, model, meta)
+    partial.unlink(missing_ok=True)
     print(f'wrote {args.out} ({Path(args.out).stat().st_size / 1024:.0f} KiB, '
           f'{len(data["y"])} records, {args.epochs} epochs, {figures["train_s"]} s); '
           f'largest torch/NumPy logit difference {meta["figures"]["max_abs_export_error"]:.2g}; '

@@ -239,7 +239,7 @@ def cut_windows(xt, starts: np.ndarray, width: int = CROP):
 
 def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=print,
               batch: int = BATCH, device: str | None = None, arch: Arch = ARCH,
-              init: CnnModel | None = None, peak_lr: float = PEAK_LR):
+              init: CnnModel | None = None, peak_lr: float = PEAK_LR, on_epoch=None):
     """
     Return the trained torch network and its figures.
 
@@ -251,7 +251,9 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
     loss are reported after each epoch (reported only; nothing is chosen on
     it).  ``arch``: the network's shape (default: the shipped networks').
     ``init``: start from these weights (a network of the same shape) rather
-    than at random.
+    than at random.  ``on_epoch(net, figures)``: called after each epoch
+    with the figures so far (a checkpoint, so a run stopped by a time limit
+    keeps the epochs it finished).
     """
     import torch
     from torch import nn
@@ -277,6 +279,14 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
         pos_weight=torch.tensor((~y).sum() / max(y.sum(), 1), device=dev))
     t0, history, losses = time.perf_counter(), [], []
     seen = subset(data, min(n, SEEN_RECORDS))
+
+    def figures() -> dict:
+        return {'epochs': epochs, 'batch': batch, 'peak_lr': peak_lr, 'arch': arch.to_json(),
+                'train_s': round(time.perf_counter() - t0, 1),
+                'check_balanced_accuracy': list(history), 'log_loss_seen_held_out': list(losses),
+                'torch': torch.__version__,
+                'device': (torch.cuda.get_device_name(dev) if dev.type == 'cuda'
+                           else f'cpu, {torch.get_num_threads()} threads')}
     for epoch in range(epochs):
         perm, total = rng.permutation(n), 0.0
         for b in range(n // batch):
@@ -305,12 +315,9 @@ def train_cnn(data: dict, check: dict | None = None, epochs: int = EPOCHS, say=p
             line += (f', held-out balanced accuracy {ba:.4f}, whole-record log loss '
                      f'{losses[-1][0]:.4f} seen / {losses[-1][1]:.4f} held out')
         say(f'{line} ({time.perf_counter() - t0:.0f} s)')
-    return net, {'epochs': epochs, 'batch': batch, 'peak_lr': peak_lr, 'arch': arch.to_json(),
-                 'train_s': round(time.perf_counter() - t0, 1),
-                 'check_balanced_accuracy': history, 'log_loss_seen_held_out': losses,
-                 'torch': torch.__version__,
-                 'device': (torch.cuda.get_device_name(dev) if dev.type == 'cuda'
-                            else f'cpu, {torch.get_num_threads()} threads')}
+        if on_epoch is not None:
+            on_epoch(net, {**figures(), 'epochs_done': epoch + 1})
+    return net, figures()
 
 
 def export_error(net, model: CnnModel, data: dict, count: int = 50) -> float:
