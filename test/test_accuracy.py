@@ -36,3 +36,23 @@ def test_a_held_out_loop_cannot_teach_its_own_rule():
               for i in range(6)]
     pred, _ = cross_validate(cases)
     assert pred[0] is False  # loop X judged by a rule learnt without X
+
+
+def test_the_probability_threshold_chosen_on_other_tags_never_reads_the_held_out_one():
+    from stiction_ros.study.accuracy_study import threshold_by_tag
+    groups = ['A', 'A', 'B', 'B', 'C', 'C', 'D']
+    truth = [True, True, True, False, False, False, False]
+    prob = [0.30, 0.35, 0.32, 0.10, 0.12, 0.05, None]
+    answers, chosen = threshold_by_tag(groups, truth, prob)
+    # Sticky records at 0.30-0.35 and healthy ones at most 0.12: every fold
+    # learns a threshold in that gap, far under the simulation's 0.5.
+    assert all(0.12 < t <= 0.35 for t in chosen.values())
+    assert answers[:6] == [p >= chosen[g] for g, p in zip(groups[:6], prob[:6])]
+    assert answers[3:6] == [False] * 3
+    assert answers[6] is None   # cannot tell stays cannot tell
+    # Moving A's own probabilities moves nothing in A's fold.
+    moved, again = threshold_by_tag(groups, truth, [0.9, 0.01] + prob[2:])
+    assert again['A'] == chosen['A'] and moved[:2] == [True, False]
+    # Other tags of one label alone choose nothing: the fold keeps the simulation's 0.5.
+    lone, flat = threshold_by_tag(['A', 'B', 'C'], [True, True, False], [0.2, 0.6, 0.45])
+    assert flat['C'] == 0.5 and lone[2] is False

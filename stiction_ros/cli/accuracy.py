@@ -31,7 +31,7 @@ from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
 from stiction_ros.study.accuracy_study import (
-    best_threshold, by_kind, per_tag, reliability, score, sim_rows)
+    best_threshold, by_kind, per_tag, reliability, score, sim_rows, threshold_by_tag)
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
@@ -70,7 +70,15 @@ def _stuck_answers(cases, threshold):
     return out
 
 
-def plant_rows(cases, cv_pred, stuck_threshold):
+def plant_thresholds(cases) -> tuple:
+    """Return (answers, {tag: threshold}) of the detector's threshold chosen on the other tags."""
+    probability = [c['report']['stiction'].get('probability')
+                   if c['report']['stiction']['detected'] is not None else None for c in cases]
+    return threshold_by_tag([c['group'] for c in cases], [c['label'] for c in cases],
+                            probability)
+
+
+def plant_rows(cases, cv_pred, stuck_threshold, by_tag_pred=None):
     """Return {method: score} on the plant loops."""
     truth = [c['label'] for c in cases]
     learned = [c['report']['stiction']['detected'] for c in cases]
@@ -79,6 +87,9 @@ def plant_rows(cases, cv_pred, stuck_threshold):
     rows = {'**learned detector** (trained on simulation only)': score(truth, learned),
             'old rule (signature vote, published weights)': score(truth, old),
             'old rule, voters and threshold chosen leave-one-tag-out': score(truth, cv_pred),
+            **({} if by_tag_pred is None else {
+                'learned detector, probability threshold chosen leave-one-tag-out':
+                score(truth, by_tag_pred)}),
             f'stuck-period test alone (OP share >= {stuck_threshold:.3g}, set on simulation)':
             score(truth, _stuck_answers(cases, stuck_threshold))}
     for name in SIGNATURES:
@@ -115,6 +126,7 @@ def main(argv=None):
     stuck_th = best_threshold(cal['x'][:, FEATURE_NAMES.index('stuck_op_share')], cal['y'])
     cases = analyse_all(args.data, args.reports)
     cv_pred, _ = cross_validate(cases)
+    by_tag_pred, by_tag_threshold = plant_thresholds(cases)
     say(f'simulated test set: {args.sim_test} records (seeds {dataset.TEST.start}-'
         f'{dataset.TEST.start + args.sim_test - 1})')
     test = dataset.build(range(dataset.TEST.start, dataset.TEST.start + args.sim_test),
@@ -134,7 +146,8 @@ def main(argv=None):
         'data': str(args.data), 'model': model.meta, 'cnn': cnn.load().meta,
         'cnn_large': None if model.stack is None else stack.network().meta,
         'stuck_threshold': stuck_th,
-        'plant': plant_rows(cases, cv_pred, stuck_th),
+        'plant': plant_rows(cases, cv_pred, stuck_th, by_tag_pred),
+        'plant_threshold_by_tag': by_tag_threshold,
         'plant_tags': per_tag(cases, [c['report']['stiction']['detected'] for c in cases]),
         'plant_seconds': [round(c['seconds'], 3) for c in cases],
         'sim': sim_rows(test, model, stuck_th), 'sim_kinds': by_kind(test, model),

@@ -134,3 +134,38 @@ def per_tag(cases: list, answers: list) -> list:
         rows.append((tag, lab, len(idx), sum(answers[i] is True for i in idx),
                      sum(answers[i] is None for i in idx)))
     return rows
+
+
+def threshold_by_tag(groups: list, truth: list, probability: list) -> tuple:
+    """
+    Return (answers, {tag: threshold}) of a probability threshold chosen leave-one-tag-out.
+
+    For each tag the threshold is the one with the best balanced accuracy on
+    the other tags' records (their own probabilities are the candidates;
+    ties go to the candidate nearest 0.5, the threshold set on simulation),
+    and only the held-out tag is answered with it.  A record without a
+    probability (``cannot tell``) stays unanswered in its fold and counts as
+    "no stiction" where it trains; other tags of one label alone choose
+    nothing, and the fold keeps 0.5.  This fits one number on plant loops, so
+    it measures how far the simulated probability is off on the plant, not
+    what the shipped verdict answers.
+    """
+    groups = np.asarray(groups)
+    y = np.asarray(truth, dtype=bool)
+    told = np.array([p is not None for p in probability])
+    p = np.array([np.nan if v is None else float(v) for v in probability])
+    answers: list = [None] * len(p)
+    chosen = {}
+    for tag in sorted(set(groups.tolist())):
+        held = groups == tag
+        train = ~held
+        best, best_ba = 0.5, -1.0
+        for t in sorted(set(p[train & told].tolist()), key=lambda v: abs(v - 0.5)):
+            ba = balanced_accuracy(confusion(y[train], told[train] & (np.nan_to_num(
+                p[train], nan=-np.inf) >= t)))
+            if ba > best_ba + 1e-12:
+                best, best_ba = t, ba
+        chosen[tag] = best
+        for i in np.flatnonzero(held & told):
+            answers[i] = bool(p[i] >= best)
+    return answers, chosen
