@@ -6,6 +6,9 @@ record's held stretch is timed three ways, best of three repeats each:
 the old rule (oscillation and signatures alone, the baseline), the
 detector's whole feature vector (signatures, stuck periods, a coarse
 Hammerstein fit) with the model's probability, and the tree model alone.
+The large network's logit (four sign conventions, NumPy) is timed beside a
+network of twice its width and the same depth, random weights, for timing
+only: what a wider network (docs/DETECTION.md) would cost every analysis.
 Training time is in docs/ACCURACY.md (it comes with the model file).
 """
 
@@ -15,7 +18,7 @@ import sys
 from bench.load_bench import BENCH, ROOT, write_section
 import numpy as np
 
-from stiction_ros.analysis.detection import detect, extract, load_model
+from stiction_ros.analysis.detection import cnn, detect, extract, load_model, stack
 from stiction_ros.analysis.pipeline import held_signals, is_integrating, signature_window
 from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.signatures.all import compute_signatures
@@ -25,10 +28,26 @@ MARKERS = ('<!-- detector-bench: start -->', '<!-- detector-bench: end -->')
 LOOPS = ROOT.parent / 'shared' / 'data' / 'plant_loops'
 
 
+def wider(net: cnn.CnnModel, width: int = 64, hidden: int = 64) -> cnn.CnnModel:
+    """Return a network of ``net``'s depth and kernels at another width, random weights."""
+    rng = np.random.default_rng(0)
+    layers, _, _, k = net.conv_w.shape
+
+    def w(*shape):
+        return rng.normal(0.0, 1.0 / np.sqrt(np.prod(shape[1:])), shape)
+    return cnn.CnnModel(w(width, net.inp_w.shape[1], net.inp_w.shape[2]), np.zeros(width),
+                        w(layers, width, width, k), np.zeros((layers, width)), net.dilations,
+                        w(hidden, 2 * width + 1), np.zeros(hidden), w(1, hidden), np.zeros(1),
+                        {})
+
+
 def bench_detector(best_time, folder=LOOPS):
-    """Return per-record seconds: {'old_rule', 'detector', 'model_only'} lists, and samples."""
+    """Return per-record seconds of each step (see :data:`STEPS`), and samples."""
     model = load_model()
-    out = {'old_rule': [], 'detector': [], 'model_only': [], 'samples': []}
+    large = stack.network()
+    wide = wider(large)
+    out: dict = {k: [] for k in STEPS}
+    out['samples'] = []
     for f in sorted(folder.glob('*/*.txt')):
         rec = load_record(f)
         win = signature_window(rec)
@@ -43,8 +62,22 @@ def bench_detector(best_time, folder=LOOPS):
         out['detector'].append(best_time(lambda: detect(*args, integ)))
         logit = None if model.stack is None else 0.0
         out['model_only'].append(best_time(lambda: model.probability(vec, logit), repeats=20))
+        ch = cnn.channels(x['op'], x['pv'], x['sp'])
+        out['network'].append(best_time(lambda: cnn.symmetric_logit(large, ch, integ)))
+        out['network_wide'].append(best_time(lambda: cnn.symmetric_logit(wide, ch, integ)))
         out['samples'].append(len(x['op']))
     return out
+
+
+STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
+         'detector': 'learned detector: features + probability',
+         'model_only': 'tree model alone (300 trees)',
+         'network': 'large network alone (32 channels, 4 sign conventions; in the detector)',
+         'network_wide': 'a 64-channel network of the same depth (timing only)'}
+
+
+def _ratio(v: float) -> str:
+    return f'{v:.2g}' if v < 10 else f'{v:.0f}'
 
 
 def markdown(r):
@@ -58,13 +91,12 @@ def markdown(r):
             '| step | median ms | max ms | ratio to the old rule (median) |',
             '|---|---|---|---|',
             *[f'| {name} | {1e3 * med[k]:.1f} | {1e3 * mx[k]:.1f} | '
-              f'{med[k] / med["old_rule"]:.1f} |'
-              for k, name in (('old_rule', 'old rule: oscillation + signatures (baseline)'),
-                              ('detector', 'learned detector: features + probability'),
-                              ('model_only', 'tree model alone (300 trees)'))],
+              f'{_ratio(med[k] / med["old_rule"])} |' for k, name in STEPS.items()],
             '', 'Most of the time of the detector is its coarse Hammerstein fit (a sticky valve '
             'before an ARX plant), which was the strongest single separator on simulated '
-            'loops.', MARKERS[1]]
+            'loops. The wider network would cost '
+            f'{med["network_wide"] / med["network"]:.1f} times the shipped one (median), in '
+            "every analysis and in the study's network logits.", MARKERS[1]]
 
 
 def main():
