@@ -153,7 +153,7 @@ def threshold_by_tag(groups: list, truth: list, probability: list) -> tuple:
     groups = np.asarray(groups)
     y = np.asarray(truth, dtype=bool)
     told = np.array([p is not None for p in probability])
-    p = np.array([np.nan if v is None else float(v) for v in probability])
+    p = np.array([-np.inf if v is None else float(v) for v in probability])
     answers: list = [None] * len(p)
     chosen = {}
     for tag in sorted(set(groups.tolist())):
@@ -161,8 +161,7 @@ def threshold_by_tag(groups: list, truth: list, probability: list) -> tuple:
         train = ~held
         best, best_ba = 0.5, -1.0
         for t in sorted(set(p[train & told].tolist()), key=lambda v: abs(v - 0.5)):
-            ba = balanced_accuracy(confusion(y[train], told[train] & (np.nan_to_num(
-                p[train], nan=-np.inf) >= t)))
+            ba = balanced_accuracy(confusion(y[train], p[train] >= t))
             if ba > best_ba + 1e-12:
                 best, best_ba = t, ba
         chosen[tag] = best
