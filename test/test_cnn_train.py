@@ -75,11 +75,14 @@ def test_a_network_of_another_shape_exports_the_logit_pytorch_gives(tmp_path):
     (['--dilations', '1,x'], 'comma-separated'),
     (['--dilations', '1,0'], 'dilations must be'),
     (['--width', '0'], '1 channel'),
+    (['--hidden', '0'], '1 hidden unit'),
 ])
 def test_the_training_command_refuses_a_shape_it_cannot_build(argv, message, capsys):
     from stiction_ros.cli.cnn import main
     try:
-        rc = main(argv + ['--out', '/nonexistent/x.npz'])
+        # A refusal that broke would train on the smallest corpus, not hang the suite.
+        rc = main(argv + ['--seeds', '200', '--epochs', '1', '--jobs', '1',
+                          '--out', '/nonexistent/x.npz'])
     except SystemExit as stop:
         rc = stop.code
     assert rc == 2
@@ -175,3 +178,34 @@ def test_a_training_run_stopped_mid_way_keeps_its_last_epoch_and_a_finished_one_
     ok = subprocess.run(argv + ['--epochs', '1'], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
     assert cnn.load(out).meta['figures']['epochs'] == 1 and not partial.exists()
+
+
+def _save_shape(path, width, hidden, dilations):
+    rng = np.random.default_rng(3)
+    layers, k = len(dilations), 5
+    arrays = {'inp_w': rng.normal(size=(width, cnn.N_CHANNELS, 7)), 'inp_b': np.zeros(width),
+              'conv_w': rng.normal(size=(layers, width, width, k)),
+              'conv_b': np.zeros((layers, width)), 'dilations': np.array(dilations),
+              'fc1_w': rng.normal(size=(hidden, 2 * width + 1)), 'fc1_b': np.zeros(hidden),
+              'fc2_w': rng.normal(size=(1, hidden)), 'fc2_b': np.zeros(1)}
+    cnn.save(path, arrays, {})
+    return cnn.load(path)
+
+
+def test_training_on_from_a_network_keeps_its_shape_and_refuses_another(tmp_path, capsys):
+    from stiction_ros.cli.cnn import main, network_shape
+    assert network_shape(None, None, None) == ARCH
+    assert network_shape(16, None, (1, 2)) == Arch(16, ARCH.hidden, (1, 2))
+    w12 = _save_shape(tmp_path / 'w12.npz', 12, 5, (1, 3, 9))
+    # A wider base goes on training as it is, with no shape options.
+    assert network_shape(None, None, None, w12) == Arch(12, 5, (1, 3, 9))
+    assert network_shape(12, 5, (1, 3, 9), w12) == Arch(12, 5, (1, 3, 9))
+    for other in ((8, None, None), (None, 6, None), (None, None, (1, 3))):
+        with pytest.raises(ValueError, match='another network shape'):
+            network_shape(*other, w12)
+    # Refused before the corpus is simulated (and without PyTorch).
+    assert main(['--init', str(tmp_path / 'w12.npz'), '--width', '8', '--seeds', '200',
+                 '--out', str(tmp_path / 'x.npz')]) == 2
+    err = capsys.readouterr().err
+    assert 'another network shape: 12 channels, 5 hidden units, dilations 1,3,9' in err
+    assert 'corpus' not in err and not (tmp_path / 'x.npz').exists()

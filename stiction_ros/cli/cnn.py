@@ -14,8 +14,9 @@ detector (``make detector``): the network's logit is one of its figures.
 The calibration seeds' balanced accuracy is printed after each epoch and
 chooses nothing; so does the whole-record log loss on the first 2 000
 training records beside it (how far the network fits its corpus beyond what
-it learns).  The shape options default to the shipped networks'; the header
-of the weights keeps the shape.  ``--init`` continues from the weights of a
+it learns).  The shape options default to the shipped networks' (with
+``--init``, to the starting network's); the header of the weights keeps the
+shape.  ``--init`` continues from the weights of a
 network (``--first-seed``: on a corpus of other seeds); the header names the
 starting file.  After each epoch the network so far is kept beside the
 output as ``NAME.partial.npz`` (its header says how many epochs it had), and
@@ -49,10 +50,15 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--batch', type=int, default=BATCH, help='records a training step')
     p.add_argument('--device', choices=('cpu', 'cuda'),
                    help='where to train (default: a CUDA GPU if PyTorch sees one)')
-    p.add_argument('--width', type=int, default=ARCH.width, help='channels of every layer')
-    p.add_argument('--hidden', type=int, default=ARCH.hidden, help='units of the hidden layer')
-    p.add_argument('--dilations', type=_dilations, default=ARCH.dilations,
-                   help='dilation of each residual layer, comma-separated (default: %(default)s)')
+    p.add_argument('--width', type=int,
+                   help=f'channels of every layer (default: {ARCH.width}, or the --init '
+                        "network's)")
+    p.add_argument('--hidden', type=int,
+                   help=f'units of the hidden layer (default: {ARCH.hidden}, or the --init '
+                        "network's)")
+    p.add_argument('--dilations', type=_dilations,
+                   help='dilation of each residual layer, comma-separated (default: '
+                        f"{','.join(map(str, ARCH.dilations))}, or the --init network's)")
     p.add_argument('--corpus-file',
                    help='keep the simulated corpus here, or read it if it holds the same seeds '
                         '(several network shapes on one corpus)')
@@ -79,6 +85,27 @@ def _dilations(text: str) -> tuple:
     return out
 
 
+def network_shape(width: int | None, hidden: int | None, dilations: tuple | None,
+                  init: cnn.CnnModel | None = None):
+    """
+    Return the :class:`Arch` to train: the options given, the rest from ``init`` or the default.
+
+    Training on from a network keeps its shape unless told otherwise, so a
+    wider base needs no shape options on ``make cnn-large-tune``; a shape
+    the starting weights cannot fill is refused here, before the corpus.
+    """
+    from stiction_ros.analysis.detection.cnn_train import ARCH, Arch
+    base = ARCH if init is None else Arch(int(init.inp_w.shape[0]), int(init.fc1_b.shape[0]),
+                                          tuple(int(d) for d in init.dilations))
+    arch = Arch(base.width if width is None else width, base.hidden if hidden is None else hidden,
+                base.dilations if dilations is None else dilations)
+    if init is not None and arch != base:
+        raise ValueError(f'the starting weights are of another network shape: '
+                         f'{base.width} channels, {base.hidden} hidden units, dilations '
+                         f'{",".join(map(str, base.dilations))}')
+    return arch
+
+
 def partial_path(out: str | Path) -> Path:
     """Return where training keeps its last finished epoch beside ``out`` until it ends."""
     out = Path(out)
@@ -97,7 +124,8 @@ def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
     if (args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1
-            or args.width < 1 or args.hidden < 1 or args.first_seed < 0
+            or min(v for v in (args.width, args.hidden, 1) if v is not None) < 1
+            or args.first_seed < 0
             or not 0 < args.peak_lr < 1):
         print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1, 1 job, '
               '1 channel and 1 hidden unit; a first seed of 0 or more; a peak learning rate '
@@ -111,17 +139,6 @@ def main(argv=None) -> int:
                   f"detector's {name.lower()} seeds {used.start}-{used.stop - 1}",
                   file=sys.stderr)
             return 2
-    # Only looked up here: a parent holding torch's thread pool makes the
-    # corpus workers it forks ten times slower.
-    if importlib.util.find_spec('torch') is None:
-        print('stiction-cnn: error: PyTorch is needed to train the network: '
-              '.venv/bin/pip install -r requirements/train.txt', file=sys.stderr)
-        return 2
-    from stiction_ros.analysis.detection.cnn_train import Arch, corpus, corpus_file, \
-        export_error, to_model, train_cnn
-
-    def say(m):
-        print(m, file=sys.stderr, flush=True)
     init = None
     if args.init:
         try:
@@ -129,6 +146,22 @@ def main(argv=None) -> int:
         except DetectorFileError as err:
             print(f'stiction-cnn: error: {err}', file=sys.stderr)
             return 2
+    try:
+        arch = network_shape(args.width, args.hidden, args.dilations, init)
+    except ValueError as err:
+        print(f'stiction-cnn: error: {err}', file=sys.stderr)
+        return 2
+    # Only looked up here: a parent holding torch's thread pool makes the
+    # corpus workers it forks ten times slower.
+    if importlib.util.find_spec('torch') is None:
+        print('stiction-cnn: error: PyTorch is needed to train the network: '
+              '.venv/bin/pip install -r requirements/train.txt', file=sys.stderr)
+        return 2
+    from stiction_ros.analysis.detection.cnn_train import corpus, corpus_file, export_error, \
+        to_model, train_cnn
+
+    def say(m):
+        print(m, file=sys.stderr, flush=True)
     say(f'corpus: seeds {seeds.start}-{seeds.stop - 1}'
         f'{", deadband-like sticky records left out" * args.without_deadband_like}')
     if args.corpus_file:
@@ -143,7 +176,6 @@ def main(argv=None) -> int:
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')
     check = corpus(dataset.CALIBRATION, args.jobs, say)
-    arch = Arch(args.width, args.hidden, args.dilations)
     say(f'network: {arch.width} channels, {arch.hidden} hidden units, dilations '
         f'{",".join(map(str, arch.dilations))}')
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
