@@ -28,6 +28,13 @@ MARKERS = ('<!-- detector-bench: start -->', '<!-- detector-bench: end -->')
 LOOPS = ROOT.parent / 'shared' / 'data' / 'plant_loops'
 
 
+STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
+         'detector': 'learned detector: features + probability',
+         'model_only': 'tree model alone (300 trees)',
+         'network': 'large network alone (32 channels, 4 sign conventions; in the detector)',
+         'network_wide': 'a 64-channel network of the same depth (timing only)'}
+
+
 def wider(net: cnn.CnnModel, width: int = 64, hidden: int = 64) -> cnn.CnnModel:
     """Return a network of ``net``'s depth and kernels at another width, random weights."""
     rng = np.random.default_rng(0)
@@ -67,13 +74,6 @@ def bench_detector(best_time, folder=LOOPS):
         out['network_wide'].append(best_time(lambda: cnn.symmetric_logit(wide, ch, integ)))
         out['samples'].append(len(x['op']))
     return out
-
-
-STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
-         'detector': 'learned detector: features + probability',
-         'model_only': 'tree model alone (300 trees)',
-         'network': 'large network alone (32 channels, 4 sign conventions; in the detector)',
-         'network_wide': 'a 64-channel network of the same depth (timing only)'}
 
 
 def _ratio(v: float) -> str:

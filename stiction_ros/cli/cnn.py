@@ -124,7 +124,7 @@ def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
     if (args.seeds < 200 or args.epochs < 1 or args.batch < 1 or args.jobs < 1
-            or min(v for v in (args.width, args.hidden, 1) if v is not None) < 1
+            or any(v is not None and v < 1 for v in (args.width, args.hidden))
             or args.first_seed < 0
             or not 0 < args.peak_lr < 1):
         print('stiction-cnn: error: at least 200 seeds, 1 epoch, a batch of 1, 1 job, '
