@@ -26,12 +26,42 @@ def naive_conv(x, w, b, d):
     return out
 
 
+@pytest.mark.parametrize('conv', [cnn.conv1d, cnn.conv1d_reference])
 @pytest.mark.parametrize('k,d', [(5, 1), (5, 3), (7, 1), (3, 8)])
-def test_the_dilated_convolution_equals_a_loop_over_taps(k, d):
+def test_the_dilated_convolution_equals_a_loop_over_taps(k, d, conv):
     rng = np.random.default_rng(k * 10 + d)
     x = rng.normal(size=(3, 40))
     w, b = rng.normal(size=(4, 3, k)), rng.normal(size=4)
-    np.testing.assert_allclose(cnn.conv1d(x, w, b, d), naive_conv(x, w, b, d), atol=1e-10)
+    np.testing.assert_allclose(conv(x, w, b, d), naive_conv(x, w, b, d), atol=1e-10)
+
+
+def test_the_compiled_convolution_gives_einsums_bits():
+    # Same bits, not merely close: the cached figures of the study and the
+    # calibration map were computed with einsum.  Channel counts on both sides
+    # of a multiple of four, taps 1-7, dilations up to the network's largest.
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        c_in, c_out = (int(v) for v in rng.integers(1, 70, size=2))
+        k, d = int(rng.choice([1, 3, 5, 7])), int(rng.choice([1, 2, 8, 64, 1024]))
+        x = rng.normal(size=(c_in, int(rng.integers(1, 1200))))
+        x[rng.random(x.shape) < 0.1] = 0.0
+        w = rng.normal(size=(c_out, c_in, k)).astype(np.float32).astype(np.float64)
+        b = rng.normal(size=c_out)
+        got = cnn.conv1d(x, w, b, d)
+        assert got.shape == (c_out, x.shape[1])
+        assert np.array_equal(got, cnn.conv1d_reference(x, w, b, d))
+
+
+@pytest.mark.parametrize('path', [None, 'large'])
+def test_both_shipped_networks_give_the_same_logit_with_either_convolution(path):
+    from stiction_ros.analysis.detection import stack
+    net = cnn._shipped(str(stack.LARGE_PATH) if path else None)
+    rng = np.random.default_rng(6)
+    op = 50 + np.cumsum(rng.normal(size=900)) * 0.3
+    x = cnn.channels(op, np.convolve(op, np.full(15, 1 / 15))[:900], None)
+    for integrating in (False, True):
+        assert (cnn.symmetric_logit(net, x, integrating)
+                == cnn.symmetric_logit(net, x, integrating, cnn.conv1d_reference))
 
 
 def test_the_input_does_not_see_units_offsets_or_the_set_points_own_scale():
