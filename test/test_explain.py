@@ -89,6 +89,36 @@ def test_the_grid_is_exact_for_its_best_points_and_only_bounds_the_rest():
         assert np.all(grid.flat[rest] <= exact.flat[rest])
 
 
+@pytest.mark.parametrize('index', [kk.ASYM, kk.POS, kk.DRIFT, kk.A_IN, kk.B_OUT],
+                         ids=['ASYM', 'POS', 'DRIFT', 'A_IN', 'B_OUT'])
+def test_the_kernels_shortcuts_for_absent_effects_change_no_bit(index):
+    # With ASYM, POS and DRIFT at zero the kernel takes the band multiplier as 1,
+    # and with no lag it passes the signal through, without the arithmetic.  An
+    # effect of 1e-300 is not zero, so it runs the arithmetic, yet too small to
+    # change a float of this size: both paths must give the same bits.
+    u = op_walk(4000, seed=5)
+    rng = np.random.default_rng(6)
+    y = create('kano', S=3.0, J=1.0).simulate(u, y0=50.0) + rng.normal(0, 0.1, len(u))
+    starts, stops, y0s = np.array([0, 2000]), np.array([1990, 4000]), np.array([y[0], y[2000]])
+    s_ax, j_ax = np.linspace(2.0, 4.0, 7), np.linspace(0.0, 2.0, 7)
+    for other in (None, kk.DWELL, kk.STRIBECK, kk.CREEP):
+        p = kk.plain_params()
+        if other is not None:
+            p[other] = {kk.DWELL: 0.3, kk.STRIBECK: 0.05, kk.CREEP: 0.2}[other]
+        tiny = p.copy()
+        tiny[index] = 1e-300
+        grids = [kk.kano_effects_grid(u, y, starts, stops, y0s, s_ax, j_ax, q, math.inf, 49)
+                 for q in (p, tiny)]
+        assert np.array_equal(grids[0], grids[1])
+        outs = []
+        for q in (p, tiny):
+            out, rest = np.empty(len(u)), np.empty(len(u))
+            kk.kano_effects_fit_output(u, y, starts, stops, y0s, 3.0, 1.0, q, out, rest)
+            outs.append((out, rest))
+        assert np.array_equal(outs[0][0], outs[1][0]) and np.array_equal(outs[0][1], outs[1][1])
+    assert np.ptp(grids[0]) > 0
+
+
 def test_an_effect_fit_finds_a_basin_far_from_the_plain_fits_j():
     # Friction that falls by a third over the record: the plain fit settles at J = 0.44,
     # the truth averages J = 2.35 over the fitted part.  The effect's fit must reach an

@@ -56,7 +56,12 @@ def plain_params() -> Floats:
 
 
 @njit(cache=True, inline='always')
-def _scale(p: Floats, d: float, y: float, k: float) -> float:
+def _scale(p: Floats, d: float, y: float, k: float, plain: bool) -> float:
+    # ``plain``: ASYM, POS and DRIFT are all zero, so m is exactly 1 (y and k are
+    # finite).  Skipping the sum takes two divisions off the chain from one
+    # sample's position to the next: the fits of the other effects run faster.
+    if plain:
+        return 1.0
     m = 1.0 + p[ASYM] * d + p[POS] * (y - p[POS_REF]) / 50.0
     m += p[DRIFT] * (k - p[DRIFT_MID]) / p[DRIFT_SPAN]
     return m if m > 0.0 else 0.0
@@ -64,19 +69,19 @@ def _scale(p: Floats, d: float, y: float, k: float) -> float:
 
 @njit(cache=True, inline='always')
 def _breakaway_fx(d: float, rel: float, S: float, J: float, p: Floats, y: float, k: float,
-                  rest: float) -> float:
+                  rest: float, plain: bool) -> float:
     # Kano's breakaway with the band of the direction the valve would move in.
     grow = 0.0
     if p[DWELL] != 0.0:
         grow = p[DWELL] * S * rest / (rest + p[DWELL_TAU])
     if d == 0.0:
         nd = 1.0 if rel > 0.0 else -1.0
-        m = _scale(p, nd, y, k)
+        m = _scale(p, nd, y, k, plain)
         if abs(rel) > 0.5 * (S + J) * m + grow:
             return nd
         return 0.0
-    m_old = _scale(p, d, y, k)
-    m_new = _scale(p, -d, y, k)
+    m_old = _scale(p, d, y, k, plain)
+    m_new = _scale(p, -d, y, k, plain)
     # Reversing, the input first undoes the kinetic friction of the old direction,
     # then overcomes the static friction of the new one: (S-J)/2 + (S+J)/2 = S when
     # both directions are alike.
@@ -107,24 +112,30 @@ def _segment(u: Floats, y: Floats, i0: int, i1: int, S: float, J: float, p: Floa
     uf, since, yrest, k = st[ST_UF], st[ST_SINCE], st[ST_YREST], st[ST_K]
     resting = st[ST_RESTING] > 0.5
     half_kinetic = 0.5 * (S - J)
+    plain = p[ASYM] == 0.0 and p[POS] == 0.0 and p[DRIFT] == 0.0
+    # Without a lag the filter passes its input through exactly (0 * x + 1 * u = u):
+    # taken out of the loop, so are the multiply-adds that chain one sample to the next.
+    a_in, b_out = p[A_IN], p[B_OUT]
+    lag_in, lag_out = a_in != 0.0, b_out != 0.0
+    stribeck, creep = p[STRIBECK], p[CREEP]
     for i in range(i0, i1):
-        uf = p[A_IN] * uf + (1.0 - p[A_IN]) * u[i]
+        uf = a_in * uf + (1.0 - a_in) * u[i] if lag_in else u[i]
         uk = _clip(uf)
-        if not resting and ((uk - u1) * (u1 - u2) <= 0.0 or abs(uk - u1) < p[STRIBECK]):
+        if not resting and ((uk - u1) * (u1 - u2) <= 0.0 or abs(uk - u1) < stribeck):
             us = u1
             resting = True
             since = k
             yrest = yk
         if resting:
-            nd = _breakaway_fx(d, uk - us, S, J, p, yk, k, k - since)
+            nd = _breakaway_fx(d, uk - us, S, J, p, yk, k, k - since, plain)
             if nd != 0.0:
                 d = nd
                 resting = False
         if resting:
-            yk = _clip(yrest + p[CREEP] * (uk - us))
+            yk = _clip(yrest + creep * (uk - us))
         else:
-            yk = _clip(uk - d * half_kinetic * _scale(p, d, yk, k))
-        ym = p[B_OUT] * ym + (1.0 - p[B_OUT]) * yk
+            yk = _clip(uk - d * half_kinetic * _scale(p, d, yk, k, plain))
+        ym = b_out * ym + (1.0 - b_out) * yk if lag_out else yk
         u2 = u1
         u1 = uk
         k += 1.0
