@@ -12,7 +12,8 @@ session's controlling terminal with this group in the foreground, and the
 nodes inherit it on stdin, stdout and stderr; else node output goes to
 ``DIR/NAME.log``.  Like launch, on the first SIGINT or SIGTERM it sends
 SIGINT to each node itself, so every node gets the signal twice.  It waits
-for every node (SIGKILL after ``deadline`` seconds), writes
+for every node (after ``deadline`` seconds SIGUSR1, on which a node prints
+its stacks, then SIGKILL a second later), writes
 ``{name: exit code}`` to RESULT and exits 0.
 """
 
@@ -42,14 +43,21 @@ def main(spec_path, result_path, deadline=30.0):
             out = open(os.path.join(spec['logs'], f'{name}.log'), 'ab')
         procs[name] = subprocess.Popen(argv, stdin=None if spec['tty'] else subprocess.DEVNULL,
                                        stdout=out, stderr=None if out is None else out)
-    stop_at = None
+    stop_at, asked = None, False
     while any(p.poll() is None for p in procs.values()):
         if got and stop_at is None:
             stop_at = time.monotonic()
             for p in procs.values():
                 if p.poll() is None:
                     p.send_signal(signal.SIGINT)
-        if stop_at is not None and time.monotonic() > stop_at + deadline:
+        late = stop_at is not None and time.monotonic() > stop_at + deadline
+        if late and not asked:
+            # Where a node hangs is the only clue a SIGKILL would leave none of.
+            asked = True
+            for p in procs.values():
+                if p.poll() is None:
+                    p.send_signal(signal.SIGUSR1)
+        if late and time.monotonic() > stop_at + deadline + 1.0:
             for p in procs.values():
                 if p.poll() is None:
                     p.kill()

@@ -345,6 +345,31 @@ def test_signals_during_start_up_stop_the_recorder_once_it_exists(tmp_path):
     assert read_bag(bag).complete
 
 
+def test_sigusr1_prints_a_running_nodes_stacks_and_the_node_goes_on(tmp_path):
+    # What a launcher or an operator can ask of a node that does not stop: where it is.
+    with open(tmp_path / 'plant.log', 'wb') as log:
+        node = subprocess.Popen(node_argv('plant', '/stop_usr1', None),
+                                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        # SIGUSR1's handler is installed first; SIGINT's chained one once the node exists.
+        wait_for(lambda: catches(node.pid, signal.SIGUSR1) or node.poll() is not None, 30.0,
+                 'the plant to enter run()')
+        node.send_signal(signal.SIGUSR1)
+        wait_for(lambda: 'most recent call first' in (tmp_path / 'plant.log').read_text(),
+                 10.0, 'the stacks in the log')
+        time.sleep(0.5)
+        assert node.poll() is None, (tmp_path / 'plant.log').read_text()
+        node.send_signal(signal.SIGINT)
+        code = node.wait(30.0)
+    finally:
+        if node.poll() is None:
+            node.kill()
+            node.wait()
+    text = (tmp_path / 'plant.log').read_text()
+    assert code == 0, text
+    assert 'stiction_ros/nodes/run.py' in text, text
+
+
 def catches(pid, signum):
     """Return whether process ``pid`` has a handler for ``signum`` (its SigCgt mask)."""
     try:

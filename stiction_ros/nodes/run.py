@@ -25,6 +25,11 @@ starves that watchdog; faulthandler then ends the process ``BACKSTOP_S``
 later with status 1 and the stacks, through interpreter exit too.
 
 A node that cannot start prints one line saying why and exits 2.
+
+SIGUSR1 prints every thread's stack to stderr and the node goes on: a node
+that hangs says where, to an operator (``kill -USR1 PID``) or to a launcher
+about to SIGKILL it (the shutdown tests' runner does so).  Printed by
+faulthandler's C handler, it needs no GIL, so a stall inside C code shows too.
 """
 
 import faulthandler
@@ -92,7 +97,8 @@ def help_text(factory, prog):
             '[-r FROM:=TO] [--log-level LEVEL]]\n\n'
             f'{doc}\n\nParameters: `ros2 param list` and `ros2 param describe` on the '
             'running node show each one with its range and rule (README, "Parameters").\n'
-            'Exit status: 0 after a clean stop (SIGINT/SIGTERM), 2 if the node cannot start.')
+            'Exit status: 0 after a clean stop (SIGINT/SIGTERM), 2 if the node cannot start.\n'
+            "SIGUSR1 prints every thread's stack to stderr; the node goes on.")
 
 
 def run(factory, args=None, prog='node'):
@@ -111,6 +117,8 @@ def run(factory, args=None, prog='node'):
             # Read by `head` or a pager that quit: nothing more to say.
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    # Before anything can hang: a stall at start-up is worth its stacks as well.
+    faulthandler.register(signal.SIGUSR1, file=sys.stderr, all_threads=True)
     stop = StopRequest()
     for signum in STOP_SIGNALS:
         signal.signal(signum, stop)
