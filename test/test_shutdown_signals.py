@@ -370,6 +370,28 @@ def test_sigusr1_prints_a_running_nodes_stacks_and_the_node_goes_on(tmp_path):
     assert 'stiction_ros/nodes/run.py' in text, text
 
 
+def test_loop_kills_a_node_that_will_not_stop_only_after_taking_its_stacks(tmp_path, capsys):
+    from stiction_ros.cli.loop import Processes
+    # A node stuck where SIGINT cannot reach it, with run()'s SIGUSR1 handler.
+    stuck = ('import faulthandler, signal, sys, time\n'
+             'faulthandler.register(signal.SIGUSR1, all_threads=True)\n'
+             'signal.signal(signal.SIGINT, signal.SIG_IGN)\n'
+             'print("ready", flush=True)\n'
+             'time.sleep(60)\n')
+    procs = Processes(tmp_path)
+    procs.start('valve', [sys.executable, '-c', stuck], dict(os.environ))
+    log = tmp_path / 'valve.log'
+    wait_for(lambda: 'ready' in log.read_text(), 30.0, 'the stuck node to start')
+    t0 = time.monotonic()
+    procs.stop(['valve'], timeout=0.5)
+    assert procs.procs['valve'][0].returncode == -signal.SIGKILL
+    assert time.monotonic() - t0 < 10.0
+    assert 'line 5 in <module>' in log.read_text()        # the stuck thread, in its sleep
+    err = capsys.readouterr().err
+    assert 'node valve did not stop within 0.5 s of SIGINT and was killed' in err
+    assert str(log) in err
+
+
 def catches(pid, signum):
     """Return whether process ``pid`` has a handler for ``signum`` (its SigCgt mask)."""
     try:

@@ -42,6 +42,8 @@ MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'val
 # The node that consumes each loop topic: where its injected faults happen.
 CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
 INJECT_KEYS = ('drop', 'delay', 'jitter', 'seed')
+# s a node that will not stop gets to print its stacks (SIGUSR1) before SIGKILL.
+STACKS_S = 1.0
 
 
 # A loop node is restarted only after it ran this long (s).
@@ -132,6 +134,10 @@ class Processes:
         """
         SIGINT the named nodes and wait; SIGKILL what does not exit in time.
 
+        A node that does not exit is first asked for its stacks (SIGUSR1: every
+        thread's, into its log) and given a second to write them: where it hung
+        is the one clue a SIGKILL alone would lose.  One line on stderr says so.
+
         A SIGINT or SIGTERM that comes meanwhile (Ctrl-C pressed again) is held
         back until every node of the loop has exited, then delivered: it cannot
         leave a node running or a bag unfinished.
@@ -150,14 +156,25 @@ class Processes:
                 try:
                     p.wait(max(deadline - time.monotonic(), 0.1))
                 except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+                    self._kill_with_stacks(name, p, timeout)
                 log.close()
         finally:
             if all(p.poll() is not None for p, _ in self.procs.values()):
                 # An exception on its way (the first Ctrl-C, a node that failed) ends the
                 # run already: what was held during its stop is not delivered on top.
                 held.release(deliver=sys.exc_info()[1] is None)
+
+    def _kill_with_stacks(self, name, p, timeout):
+        p.send_signal(signal.SIGUSR1)
+        try:
+            p.wait(STACKS_S)
+        except subprocess.TimeoutExpired:
+            pass
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        print(f'loop: node {name} did not stop within {timeout:g} s of SIGINT and was killed; '
+              f'its stacks are at the end of {self.log_dir / f"{name}.log"}', file=sys.stderr)
 
 
 class HeldSignals:
