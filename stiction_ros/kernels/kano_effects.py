@@ -57,9 +57,11 @@ def plain_params() -> Floats:
 
 @njit(cache=True, inline='always')
 def _scale(p: Floats, d: float, y: float, k: float, plain: bool) -> float:
-    # ``plain``: ASYM, POS and DRIFT are all zero, so m is exactly 1 (y and k are
-    # finite).  Skipping the sum takes two divisions off the chain from one
-    # sample's position to the next: the fits of the other effects run faster.
+    # ``plain``: ASYM, POS and DRIFT are all zero, so m is exactly 1 while y and k
+    # are finite, which the callers' inputs are (NaN and infinity never reach a
+    # fit or a run; the old sum would have carried a NaN on, this does not).
+    # Skipping it takes two divisions off the chain from one sample's position to
+    # the next: the fits of the other effects run faster.
     if plain:
         return 1.0
     m = 1.0 + p[ASYM] * d + p[POS] * (y - p[POS_REF]) / 50.0

@@ -77,6 +77,10 @@ def conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.nda
     # thread count, and a figure must not change with the machine's load (a pool
     # worker runs one BLAS thread, the main process several).  It sums in
     # einsum's order, so the figures computed with einsum before it stand.
+    if w.ndim != 3 or w.shape[2] % 2 == 0 or w.shape[1] != x.shape[0] or b.shape != w.shape[:1]:
+        # The compiled loop trusts its shapes: an even kernel would read past the padding.
+        raise ValueError(f'convolution of {x.shape} by {w.shape} with bias {b.shape}: '
+                         'needs (C_in, n), (C_out, C_in, odd k) and (C_out,)')
     f8 = np.float64
     return conv1d_same(np.ascontiguousarray(x, dtype=f8), np.ascontiguousarray(w, dtype=f8),
                        np.ascontiguousarray(b, dtype=f8), int(dilation))
@@ -87,7 +91,7 @@ def conv1d_reference(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int)
     Return :func:`conv1d` computed with NumPy's einsum, one tap at a time.
 
     How the figures were computed before the compiled loop, which gives the
-    same bits in about half the time; tests and ``make bench-detector`` hold
+    same bits about 1.7 times as fast; tests and ``make bench-detector`` hold
     :func:`conv1d` to it.
     """
     k = w.shape[2]
@@ -218,9 +222,10 @@ def cnn_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, integrating
     Return the shipped network's log-odds of stiction for one contiguous record.
 
     The logit is the mean over the loop's four sign conventions
-    (:func:`symmetric_logit`).  The four passes cost about 13 us a sample
-    (33 us with einsum's convolution).  A record longer than ``WINDOW``
-    samples (no simulated record is) is read as at most ``WINDOWS`` evenly
+    (:func:`symmetric_logit`).  The four passes of the large network cost
+    about 17 us a sample (28 us with einsum's convolution; ``make
+    bench-detector``).  A record longer than ``WINDOW`` samples (no
+    simulated record is) is read as at most ``WINDOWS`` evenly
     spaced windows of ``WINDOW`` samples, standardised over the whole
     record, and their logits averaged, so a day at 1 s costs what four
     windows do.
