@@ -13,6 +13,7 @@ message sent before the stop: an in-test subscriber sees the same messages,
 and the send stamps it saw must all be in the bag.
 """
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -313,6 +314,22 @@ def node_processes(log_dir):
     return pids
 
 
+@contextlib.contextmanager
+def node_process(argv, log_path, ready):
+    """Start a node with its output in ``log_path``; yield it once it handles ``ready``."""
+    with open(log_path, 'wb') as log:
+        proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log,
+                                stderr=subprocess.STDOUT)
+    try:
+        wait_for(lambda: catches(proc.pid, ready) or proc.poll() is not None, 30.0,
+                 f'{argv[2]} to enter run()')
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
 def test_signals_during_start_up_stop_the_recorder_once_it_exists(tmp_path):
     """
     SIGINT twice while the node is being built: it finishes starting, then stops cleanly.
@@ -322,21 +339,12 @@ def test_signals_during_start_up_stop_the_recorder_once_it_exists(tmp_path):
     recorder's set-up, before any spin.
     """
     bag = tmp_path / 'bag'
-    with open(tmp_path / 'recorder.log', 'wb') as log:
-        rec = subprocess.Popen(
-            [sys.executable, '-m', 'stiction_ros.nodes.recorder_node', '--ros-args',
-             '-r', '__ns:=/stop_start', '-p', f'output:={bag}'],
-            stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        wait_for(lambda: catches(rec.pid, signal.SIGTERM) or rec.poll() is not None, 30.0,
-                 'the recorder to enter run()')
+    argv = [sys.executable, '-m', 'stiction_ros.nodes.recorder_node', '--ros-args',
+            '-r', '__ns:=/stop_start', '-p', f'output:={bag}']
+    with node_process(argv, tmp_path / 'recorder.log', signal.SIGTERM) as rec:
         rec.send_signal(signal.SIGINT)
         rec.send_signal(signal.SIGINT)
         code = rec.wait(30.0)
-    finally:
-        if rec.poll() is None:
-            rec.kill()
-            rec.wait()
     text = (tmp_path / 'recorder.log').read_text()
     assert code == 0, text
     assert 'recorder: wrote 0 messages' in text, text
@@ -347,24 +355,15 @@ def test_signals_during_start_up_stop_the_recorder_once_it_exists(tmp_path):
 
 def test_sigusr1_prints_a_running_nodes_stacks_and_the_node_goes_on(tmp_path):
     # What a launcher or an operator can ask of a node that does not stop: where it is.
-    with open(tmp_path / 'plant.log', 'wb') as log:
-        node = subprocess.Popen(node_argv('plant', '/stop_usr1', None),
-                                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        # SIGUSR1's handler is installed first; SIGINT's chained one once the node exists.
-        wait_for(lambda: catches(node.pid, signal.SIGUSR1) or node.poll() is not None, 30.0,
-                 'the plant to enter run()')
+    log = tmp_path / 'plant.log'
+    # SIGUSR1's handler is installed first; SIGINT's chained one once the node exists.
+    with node_process(node_argv('plant', '/stop_usr1', None), log, signal.SIGUSR1) as node:
         node.send_signal(signal.SIGUSR1)
-        wait_for(lambda: 'most recent call first' in (tmp_path / 'plant.log').read_text(),
-                 10.0, 'the stacks in the log')
+        wait_for(lambda: 'most recent call first' in log.read_text(), 10.0, 'the stacks')
         time.sleep(0.5)
-        assert node.poll() is None, (tmp_path / 'plant.log').read_text()
+        assert node.poll() is None, log.read_text()
         node.send_signal(signal.SIGINT)
         code = node.wait(30.0)
-    finally:
-        if node.poll() is None:
-            node.kill()
-            node.wait()
     text = (tmp_path / 'plant.log').read_text()
     assert code == 0, text
     assert 'stiction_ros/nodes/run.py' in text, text
