@@ -10,6 +10,9 @@ The large network's logit (four sign conventions, NumPy) is timed with its
 compiled convolution and with the einsum one it replaced (the same bits), and
 beside a network of twice its width and the same depth, random weights, for
 timing only: what a wider network (docs/DETECTION.md) would cost every analysis.
+The Hammerstein fit's lag sums, most of its time, are timed on each record's
+regression (one valve path) as the fits compute them and as first written,
+row by row (the same bits, counted).
 Training time is in docs/ACCURACY.md (it comes with the model file).
 """
 
@@ -20,10 +23,13 @@ from bench.load_bench import BENCH, ROOT, write_section
 import numpy as np
 
 from stiction_ros.analysis.detection import cnn, detect, extract, load_model, stack
+from stiction_ros.analysis.detection.features import HAM_MAX_DELAY
+from stiction_ros.analysis.hammerstein.problem import HammersteinProblem
 from stiction_ros.analysis.pipeline import held_signals, is_integrating, signature_window
 from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.signatures.all import compute_signatures
 from stiction_ros.cli.study import machine_description
+from stiction_ros.kernels.hammerstein import lag_sums, lag_sums_reference, segment_path
 
 MARKERS = ('<!-- detector-bench: start -->', '<!-- detector-bench: end -->')
 LOOPS = ROOT.parent / 'shared' / 'data' / 'plant_loops'
@@ -34,7 +40,9 @@ STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
          'model_only': 'tree model alone (300 trees)',
          'network': 'large network alone (32 channels, 4 sign conventions; in the detector)',
          'network_einsum': 'the same with the einsum convolution it replaced (same bits)',
-         'network_wide': 'a 64-channel network of the same depth (timing only)'}
+         'network_wide': 'a 64-channel network of the same depth (timing only)',
+         'lag_sums': 'Hammerstein lag sums of one valve path, lag by lag (in the detector)',
+         'lag_sums_rows': 'the same sums row by row, as first written (same bits)'}
 
 
 def wider(net: cnn.CnnModel, width: int = 64, hidden: int = 64) -> cnn.CnnModel:
@@ -56,7 +64,8 @@ def bench_detector(best_time, folder=LOOPS):
     large = stack.network()
     wide = wider(large)
     out: dict = {k: [] for k in STEPS}
-    out['samples'], out['same_logit'] = [], []
+    out['samples'], out['same_logit'], out['same_sums'] = [], [], []
+    regressions = []
     for f in sorted(folder.glob('*/*.txt')):
         rec = load_record(f)
         win = signature_window(rec)
@@ -78,8 +87,28 @@ def bench_detector(best_time, folder=LOOPS):
         out['same_logit'].append(cnn.symmetric_logit(large, ch, integ) == cnn.symmetric_logit(
             large, ch, integ, cnn.conv1d_reference))
         out['network_wide'].append(best_time(lambda: cnn.symmetric_logit(wide, ch, integ)))
+        regressions.append(_lag_sum_args(x['op'], x['pv'], integ))
         out['samples'].append(len(x['op']))
+    # Last: these two load numba (no ahead-of-time build), which would speed every
+    # kernel timed after them beyond what an analysis, which loads none, gets.
+    for sums in regressions:
+        out['lag_sums'].append(best_time(lambda: lag_sums(*sums), repeats=20))
+        out['lag_sums_rows'].append(best_time(lambda: lag_sums_reference(*sums), repeats=20))
+        out['same_sums'].append(all(np.array_equal(a, b) for a, b in zip(
+            lag_sums(*sums), lag_sums_reference(*sums))))
     return out
+
+
+def _lag_sum_args(op, pv, integ):
+    # The detector's regression of this record, and one valve path (S 2 % of OP's
+    # travel, J half of it) through it.
+    op, pv = np.asarray(op, dtype=np.float64), np.asarray(pv, dtype=np.float64)
+    prob = HammersteinProblem(op, pv, [(0, len(op))], integ, (2, 2), 1, HAM_MAX_DELAY)
+    s = 0.02 * float(np.ptp(op))
+    v = segment_path(np.ascontiguousarray(prob.op), s, 0.5 * s, 0, 0.5) - prob.ubar
+    nl = prob.dhi - prob.dlo + prob.nb
+    return (v, prob.rows, prob.row_seg, prob.qy, prob.tres, prob.dlo, nl, prob.nb,
+            len(prob.seg_rows))
 
 
 def _ratio(v: float) -> str:
@@ -97,14 +126,17 @@ def markdown(r):
             f'{int(np.median(r["samples"]))} samples, one core, best of 3.', '',
             '| step | median ms | max ms | ratio to the old rule (median) |',
             '|---|---|---|---|',
-            *[f'| {name} | {1e3 * med[k]:.1f} | {1e3 * mx[k]:.1f} | '
+            *[f'| {name} | {1e3 * med[k]:.3g} | {1e3 * mx[k]:.3g} | '
               f'{_ratio(med[k] / med["old_rule"])} |' for k, name in STEPS.items()],
             '', 'Most of the time of the detector is its coarse Hammerstein fit (a sticky valve '
             'before an ARX plant), which was the strongest single separator on simulated '
             'loops. The compiled convolution makes the network '
             f'{med["network_einsum"] / med["network"]:.1f} times as fast as with einsum '
             f'(median; the same logit to the bit on {same} of the {len(r["same_logit"])} '
-            'records). The wider network would cost '
+            'records). Summed lag by lag, the Hammerstein lag sums take '
+            f'{med["lag_sums"] / med["lag_sums_rows"]:.2f} of the time they took row by row '
+            f'(median; the same sums to the bit on {sum(r["same_sums"])} of '
+            f'{len(r["same_sums"])} records). The wider network would cost '
             f'{med["network_wide"] / med["network"]:.1f} times the shipped one (median), in '
             "every analysis and in the study's network logits.", MARKERS[1]]
 

@@ -171,6 +171,43 @@ def test_kernel_sse_equals_a_plain_least_squares_fit():
             assert sse[0, 0] == pytest.approx(float(resid @ resid), rel=1e-6)
 
 
+def naive_lag_sums(v, rows, row_seg, qy, tres, dlo, nl, nb, nseg):
+    qv, tv = np.zeros((nl, qy.shape[1])), np.zeros(nl)
+    vv, sv = np.zeros((nl, nb)), np.zeros((nseg, nl))
+    for r, row in enumerate(rows):
+        for i in range(nl):
+            x = float(v[row - dlo - i])
+            sv[row_seg[r], i] += x
+            tv[i] += x * tres[r]
+            for c in range(qy.shape[1]):
+                qv[i, c] += x * qy[r, c]
+            for m in range(min(nb, nl - i)):
+                vv[i, m] += x * v[row - dlo - i - m]
+    return qv, tv, vv, sv
+
+
+@pytest.mark.parametrize('p, nb', [(0, 2), (2, 2), (3, 1), (4, 2), (5, 2), (2, 3), (7, 4)])
+def test_the_lag_sums_are_the_row_by_row_sums_to_the_bit(p, nb):
+    # The fits sum lag by lag in registers; every sum must still add its terms in
+    # the order of the rows, from zero, whatever the shapes and however the rows'
+    # segments follow one another (interleaved here, as no fit makes them).
+    from stiction_ros.kernels.hammerstein import lag_sums, lag_sums_reference
+    rng = np.random.default_rng(10 * p + nb)
+    for n, nseg, interleaved in ((0, 1, False), (1, 1, False), (300, 3, False), (300, 3, True)):
+        v = rng.normal(size=400) * 10.0 ** rng.integers(-3, 4, size=400)
+        dlo, dhi = 1, 4
+        nl = dhi - dlo + nb
+        rows = np.sort(rng.choice(np.arange(dhi + nb + 1, 400), size=n, replace=False))
+        row_seg = (rng.integers(0, nseg, size=n) if interleaved
+                   else np.repeat(np.arange(nseg), -(-n // nseg))[:n]).astype(np.int64)
+        qy, tres = rng.normal(size=(n, p)), rng.normal(size=n)
+        args = (v, rows.astype(np.int64), row_seg, qy, tres, dlo, nl, nb, nseg)
+        want = naive_lag_sums(*args)
+        for got in (lag_sums(*args), lag_sums_reference(*args)):
+            assert all(np.array_equal(a, b) for a, b in zip(got, want)), (n, interleaved)
+    assert np.any(want[0]) or p == 0
+
+
 def test_start_states_put_the_valve_where_they_say():
     u = np.array([50.0, 50.5, 51.5, 52.5])
     S, J = 2.0, 1.0
