@@ -5,8 +5,8 @@ A Kano valve's path before an ARX plant, scored for every (S, J) of a grid
 and every dead time in one pass: the plant's regression is reduced once per
 valve path by a rank-``nb`` update of a projection computed outside.  The
 cross products behind it, most of the detector's time, are summed lag by lag,
-each sum in a local (a register, for the default orders), in the order of the
-rows: the bits of the row-by-row loop (:func:`lag_sums_reference`) in about half
+each sum in a register (four regressors and two valve lags a pass), in the
+order of the rows: the bits of the row-by-row loop (:func:`lag_sums_reference`) in about half
 its time as built ahead of time, a quarter under numba's build for the processor.
 """
 
@@ -111,9 +111,9 @@ def lag_sums_reference(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: F
 
     ``(qv, tv, vv, sv)``: each lag ``i`` of ``v`` (from ``dlo``) times each
     projected regressor, times the target's residual, times lags ``i`` to
-    ``i + nb - 1`` (itself first), and summed over each segment's rows.  Not used by the fits: the
-    reference that ``_lag_sums_small`` and ``_lag_sums_any`` give to the bit
-    (tests) and are timed against (``make bench-detector``).
+    ``i + nb - 1`` (itself first), and summed over each segment's rows.
+    Not used by the fits: the reference that :func:`lag_sums` gives to the
+    bit (tests) and is timed against (``make bench-detector``).
     """
     p = qy.shape[1]
     qv = np.zeros((nl, p))
@@ -138,98 +138,65 @@ def lag_sums_reference(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: F
 def lag_sums(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: Floats, dlo: int, nl: int,
              nb: int, nseg: int) -> tuple[Floats, Floats, Floats, Floats]:
     """Return :func:`lag_sums_reference`'s sums, the same bits, as the fits compute them."""
-    if qy.shape[1] <= 4 and nb <= 2:
-        return _lag_sums_small(v, rows, row_seg, qy, tres, dlo, nl, nb, nseg)
-    return _lag_sums_any(v, rows, row_seg, qy, tres, dlo, nl, nb, nseg)
-
-
-@njit(cache=True)
-def _lag_sums_any(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: Floats, dlo: int,
-                  nl: int, nb: int, nseg: int) -> tuple[Floats, Floats, Floats, Floats]:
-    # Lag by lag, each sum over the rows kept in a local: every sum still adds its
-    # terms in the order of the rows, from zero, as a loop over rows outside would.
     p = qy.shape[1]
     qv = np.zeros((nl, p))
     tv = np.zeros(nl)
     vv = np.zeros((nl, nb))
     sv = np.zeros((nseg, nl))
-    q = np.zeros(p)
-    w = np.zeros(nb)
-    n = rows.shape[0]
-    for i in range(nl):
-        q[:] = 0.0
-        w[:] = 0.0
-        mm = min(nb, nl - i)
-        t, sa = 0.0, 0.0
-        seg = row_seg[0] if n > 0 else 0
-        for r in range(n):
-            k = rows[r] - dlo - i
-            x = v[k]
-            if row_seg[r] != seg:
-                sv[seg, i] = sa
-                seg = row_seg[r]
-                sa = sv[seg, i]
-            sa += x
-            t += x * tres[r]
-            for c in range(p):
-                q[c] += x * qy[r, c]
-            for m in range(mm):
-                w[m] += x * v[k - m]
-        if n > 0:
-            sv[seg, i] = sa
-        tv[i] = t
-        qv[i, :] = q
-        vv[i, :mm] = w[:mm]
+    # Four regressors and two valve lags a pass, each sum in a register (the
+    # default orders take one pass); the first pass also sums tv and sv.
+    for block in range(max(-(-p // 4), -(-nb // 2), 1)):
+        _lag_sums_block(v, rows, row_seg, qy, tres, dlo, nl, nb, 4 * block, 2 * block,
+                        qv, tv, vv, sv)
     return qv, tv, vv, sv
 
 
 @njit(cache=True)
-def _lag_sums_small(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: Floats, dlo: int,
-                    nl: int, nb: int, nseg: int) -> tuple[Floats, Floats, Floats, Floats]:
-    # _lag_sums_any for up to 4 projected regressors and 2 valve lags (the default
-    # orders), with every sum in a register: twice as fast again, the same sums.
-    p = qy.shape[1]
-    qv = np.zeros((nl, p))
-    tv = np.zeros(nl)
-    vv = np.zeros((nl, nb))
-    sv = np.zeros((nseg, nl))
+def _lag_sums_block(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: Floats, dlo: int,
+                    nl: int, nb: int, c0: int, m0: int, qv: Floats, tv: Floats, vv: Floats,
+                    sv: Floats) -> None:
+    # Lag by lag, each sum over the rows in a local: every sum still adds its terms
+    # in the order of the rows, from zero, as the loop over rows outside does.
+    pb = min(qy.shape[1] - c0, 4)
     n = rows.shape[0]
+    first = c0 == 0 and m0 == 0
     for i in range(nl):
-        mm = min(nb, nl - i)
+        mb = min(nb, nl - i) - m0
         t, sa, q0, q1, q2, q3, w0, w1 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         seg = row_seg[0] if n > 0 else 0
         for r in range(n):
             k = rows[r] - dlo - i
             x = v[k]
-            if row_seg[r] != seg:
+            if first:
+                if row_seg[r] != seg:
+                    sv[seg, i] = sa
+                    seg = row_seg[r]
+                    sa = sv[seg, i]
+                sa += x
+                t += x * tres[r]
+            if pb > 0:
+                q0 += x * qy[r, c0]
+                if pb > 1:
+                    q1 += x * qy[r, c0 + 1]
+                    if pb > 2:
+                        q2 += x * qy[r, c0 + 2]
+                        if pb > 3:
+                            q3 += x * qy[r, c0 + 3]
+            if mb > 0:
+                w0 += x * v[k - m0]
+                if mb > 1:
+                    w1 += x * v[k - m0 - 1]
+        if first:
+            if n > 0:
                 sv[seg, i] = sa
-                seg = row_seg[r]
-                sa = sv[seg, i]
-            sa += x
-            t += x * tres[r]
-            if p > 0:
-                q0 += x * qy[r, 0]
-                if p > 1:
-                    q1 += x * qy[r, 1]
-                    if p > 2:
-                        q2 += x * qy[r, 2]
-                        if p > 3:
-                            q3 += x * qy[r, 3]
-            if mm > 0:
-                w0 += x * v[k]
-                if mm > 1:
-                    w1 += x * v[k - 1]
-        if n > 0:
-            sv[seg, i] = sa
-        tv[i] = t
+            tv[i] = t
         for c, value in enumerate((q0, q1, q2, q3)):
-            if c < p:
-                qv[i, c] = value
-        if mm > 0:
-            vv[i, 0] = w0
-        if mm > 1:
-            vv[i, 1] = w1
-    return qv, tv, vv, sv
+            if c < pb:
+                qv[i, c0 + c] = value
+        if mb > 0:
+            vv[i, m0] = w0
+        if mb > 1:
+            vv[i, m0 + 1] = w1
 
 
 @njit(cache=True)
