@@ -42,7 +42,7 @@ MODULES = {'plant': 'plant_node', 'controller': 'controller_node', 'valve': 'val
 # The node that consumes each loop topic: where its injected faults happen.
 CONSUMER = {'op': 'valve', 'mv': 'plant', 'pv': 'controller'}
 INJECT_KEYS = ('drop', 'delay', 'jitter', 'seed')
-# s a node that will not stop gets to print its stacks (SIGUSR1) before SIGKILL.
+# Seconds a node that will not stop gets to print its stacks (SIGUSR1) before SIGKILL.
 STACKS_S = 1.0
 
 

@@ -5,9 +5,9 @@ The detector network's dilated convolution, summed in NumPy's einsum order.
 loop, never BLAS, so a figure cannot change with the thread count).  This
 kernel gives the same bits about 1.7 times as fast (``make bench-detector``):
 each output channel and tap sums its input channels one after another from
-zero, as einsum does, and the taps add onto the bias in order.  Four input channels go through the
-inner loop together, which keeps that order and reads the partial sums a
-quarter as often.  LLVM does not fuse the multiply and the add without
+zero, as einsum does, and the taps add onto the bias in order.  Four input
+channels go through the inner loop together, which keeps that order and reads
+the partial sums a quarter as often.  LLVM does not fuse the multiply and the add without
 fastmath, so every product and sum is rounded as NumPy rounds it
 (test/test_cnn.py holds it to einsum on random shapes).  Checked on x86-64
 with NumPy 2.4, whose einsum does not fuse either; where einsum does (a build
