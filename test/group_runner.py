@@ -52,7 +52,7 @@ def main(spec_path, result_path, deadline=30.0):
                     p.send_signal(signal.SIGINT)
         late = stop_at is not None and time.monotonic() > stop_at + deadline
         if late and not asked:
-            # Where a node hangs is the only clue a SIGKILL would leave none of.
+            # A SIGKILL alone would leave no clue of where a node hangs: ask for its stacks.
             asked = True
             for p in procs.values():
                 if p.poll() is None:
