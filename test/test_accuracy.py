@@ -56,3 +56,25 @@ def test_the_probability_threshold_chosen_on_other_tags_never_reads_the_held_out
     # Other tags of one label alone choose nothing: the fold keeps the simulation's 0.5.
     lone, flat = threshold_by_tag(['A', 'B', 'C'], [True, True, False], [0.2, 0.6, 0.45])
     assert flat['C'] == 0.5 and lone[2] is False
+
+
+def test_the_band_decides_only_at_three_to_one_and_counts_what_it_declines():
+    import numpy as np
+    from stiction_ros.analysis.detection.features import FEATURE_NAMES
+    from stiction_ros.study.accuracy_study import BANDED, by_kind, FORCED, sim_rows
+    p = np.array([0.9, 0.6, 0.4, 0.1, 0.8, 0.3, 0.2, 0.76])
+    y = np.array([True] * 4 + [False] * 4)
+    model = SimpleNamespace(probability=lambda x, logit=None: p)
+    test = {'x': np.full((8, len(FEATURE_NAMES)), np.nan), 'y': y,
+            'old_rule': [False] * 8, 'kind': np.array(['kano'] * 4 + ['linear'] * 4)}
+    rows = sim_rows(test, model, 0.5)
+    forced, band = rows[f'learned detector ({FORCED})'], rows[f'learned detector, {BANDED}']
+    assert (forced['tp'], forced['fn'], forced['fp'], forced['tn']) == (2, 2, 2, 2)
+    assert forced['decided_share'] == 1.0
+    # 0.6, 0.4 (sticky) and 0.3 (healthy) are declined; a refusal counts as "no stiction".
+    assert (band['cannot_tell_sticky'], band['cannot_tell_healthy']) == (2, 1)
+    assert (band['tp'], band['fn'], band['fp'], band['tn']) == (1, 3, 2, 2)
+    assert band['decided_share'] == pytest.approx(5 / 8)
+    assert band['balanced_accuracy_decided'] == pytest.approx(0.5 * (1 / 2 + 1 / 3))
+    assert by_kind(test, model) == [('kano', True, 4, 0.5, 0.25, 0.5),
+                                    ('linear', False, 4, 0.5, 0.5, 0.25)]

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.detection import probability_text
+from stiction_ros.analysis.detection.detect import BAND
 from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
@@ -163,6 +164,26 @@ def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
     assert f'{st["answer"]} (probability {probability_text(st["probability"])})' in res.stdout
     assert f'\n  evidence: {st["evidence"][0]}\n' in res.stdout
     assert 'Evidence' in (tmp_path / 'r.html').read_text()
+
+
+@pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
+def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
+    # A sticky FIC20102 record the shipped detector puts between the band's
+    # edges (docs/ACCURACY.md): judged, but not at odds of 3:1 either way.
+    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC20102_0609_0957*'))[0]
+    res = analyze(f, '--json', tmp_path / 'r.json', '--html', tmp_path / 'r.html')
+    assert res.returncode == 0, res.stderr
+    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    lo, hi = BAND
+    assert lo <= st['probability'] < hi, 'pick a record inside the band for this test'
+    assert st['detected'] is None and st['answer'] == 'cannot tell'
+    assert st['detector']['judgeable']['ok'] and st['evidence']
+    assert 'balanced' in st['reason']
+    # The terminal's first line gives the reason with the probability; the page the rule.
+    first = res.stdout.splitlines()[0]
+    assert f'cannot tell (the evidence is balanced: probability of stiction ' \
+           f'{probability_text(st["probability"])}' in first
+    assert 'cannot tell between' in (tmp_path / 'r.html').read_text()
 
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')

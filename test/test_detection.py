@@ -354,3 +354,22 @@ def test_a_detector_stacked_on_other_views_of_the_record_is_refused(tmp_path):
                                                       'meta': {**m.meta, 'stack': st}}))
         with pytest.raises(model_file.DetectorFileError, match='views'):
             stack.check_network(model_file.load(path).meta, str(path))
+
+
+def test_an_answer_needs_odds_of_three_to_one():
+    from stiction_ros.analysis.detection.detect import answer_of, BALANCED, reason_of
+    lo, hi = BALANCED
+    # The map is calibrated at even odds, so these edges are 3:1 either way.
+    assert hi / (1 - hi) == pytest.approx(3.0) and (1 - lo) / lo == pytest.approx(3.0)
+    assert answer_of(hi, BALANCED) == 'stiction'
+    assert answer_of(np.nextafter(hi, 0.0), BALANCED) == 'cannot tell'
+    assert answer_of(lo, BALANCED) == 'cannot tell'
+    assert answer_of(np.nextafter(lo, 0.0), BALANCED) == 'no stiction'
+    # A band of one point is the forced choice.
+    assert answer_of(0.5, (0.5, 0.5)) == 'stiction'
+    assert answer_of(np.nextafter(0.5, 0.0), (0.5, 0.5)) == 'no stiction'
+    # Between the edges the reason says which way the evidence leans and what would tell.
+    for p, lean in ((0.43, 'no stiction'), (0.63, 'stiction')):
+        why = reason_of(p, BALANCED)
+        assert 'balanced' in why and f'leaning to {lean};' in why and 'travel test' in why
+    assert 'balanced' not in reason_of(0.8, BALANCED) + reason_of(0.1, BALANCED)

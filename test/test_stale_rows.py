@@ -113,7 +113,9 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
     clean = detect(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
     held = detect(rec['op'][idx], rec['pv'][idx], rec['sp'][idx], sc.sample_time,
                   sc.integrating)
-    assert clean.answer == 'stiction' and held.probability == clean.probability
+    # The evidence leans to stiction (at 0.5 or more); held rows change neither it nor the answer.
+    assert clean.probability >= 0.5 and held.probability == clean.probability
+    assert held.answer == clean.answer
     assert held.details['held_rows'] == pause
     before, after = clean.details['stuck'], held.details['stuck']
     assert before['stuck_periods_s'] and all(a > at * sc.sample_time

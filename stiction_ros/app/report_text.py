@@ -137,10 +137,11 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
 
 def _verdict(report):
     st = report['stiction']
-    if st.get('probability') is not None:
-        how = f'probability {probability_text(st["probability"])}'
-    elif st['detected'] is None:
+    if st['detected'] is None:
+        # Balanced evidence has a probability too; its reason states it.
         how = st.get('reason', '')
+    elif st.get('probability') is not None:
+        how = f'probability {probability_text(st["probability"])}'
     else:
         how = f'score {st["score"]:.2f}'
     name = report.get('name') or report['input'].get('path')

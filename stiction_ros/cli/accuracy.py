@@ -31,7 +31,8 @@ from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
 from stiction_ros.study.accuracy_study import (
-    best_threshold, by_kind, per_tag, reliability, score, sim_rows, threshold_by_tag)
+    band_answer, BANDED, best_threshold, by_kind, FORCED, per_tag, reliability, score, sim_rows,
+    THRESHOLD, threshold_by_tag)
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
@@ -72,8 +73,7 @@ def _stuck_answers(cases, threshold):
 
 def plant_thresholds(cases) -> tuple:
     """Return (answers, {tag: threshold}) of the detector's threshold chosen on the other tags."""
-    probability = [c['report']['stiction'].get('probability')
-                   if c['report']['stiction']['detected'] is not None else None for c in cases]
+    probability = [c['report']['stiction'].get('probability') for c in cases]
     return threshold_by_tag([c['group'] for c in cases], [c['label'] for c in cases],
                             probability)
 
@@ -81,10 +81,14 @@ def plant_thresholds(cases) -> tuple:
 def plant_rows(cases, cv_pred, stuck_threshold, by_tag_pred=None):
     """Return {method: score} on the plant loops."""
     truth = [c['label'] for c in cases]
-    learned = [c['report']['stiction']['detected'] for c in cases]
+    # A record the detector judged has a probability; one it could not has none.
+    p = [c['report']['stiction'].get('probability') for c in cases]
     old = [bool(c['report']['stiction'].get('signature_vote', {}).get('detected'))
            for c in cases]
-    rows = {'**learned detector** (trained on simulation only)': score(truth, learned),
+    rows = {f'**learned detector** (trained on simulation only; {FORCED})':
+            score(truth, [None if v is None else bool(v >= THRESHOLD) for v in p]),
+            f'learned detector, {BANDED}':
+            score(truth, [None if v is None else band_answer(v) for v in p]),
             'old rule (signature vote, published weights)': score(truth, old),
             'old rule, voters and threshold chosen leave-one-tag-out': score(truth, cv_pred),
             **({} if by_tag_pred is None else {

@@ -3,6 +3,7 @@
 import math
 
 from stiction_ros.analysis.detection import probability_text
+from stiction_ros.study.accuracy_study import BANDED, FORCED, SHIPPED
 
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
@@ -116,6 +117,11 @@ def markdown(study: dict) -> str:
         'that cannot be judged (or whose stiction is hidden under the noise, or shows only '
         'as a deadband) and lists them.',
         '',
+        f'The learned detector is scored two ways on the same records: its answer at '
+        f'{FORCED} (every judgeable record decided), and `{BANDED}`: cannot tell where the '
+        'evidence is balanced, an answer only at odds of 3:1 or more (docs/DETECTION.md, '
+        f'section 3). The analyzer prints the answers of `{SHIPPED}`.',
+        '',
         '## Held out 1: the shared plant loops, by valve tag',
         '',
         f'`{study["data"]}`: {n_sticky} sticky and {n_healthy} healthy records of '
@@ -126,7 +132,7 @@ def markdown(study: dict) -> str:
         "and threshold on the other tags, fold by fold; so does the learned detector's "
         'cross-validated row for its probability threshold (one number fitted on plant '
         'loops, to measure how far the simulated probability is off there; the verdict '
-        'keeps 0.5). Caveat: the features were '
+        'does not use it). Caveat: the features were '
         'designed by engineers who had looked at these trends (not at any score on them); '
         'the plant loops that were never shared are the truly unseen test.',
         '',
@@ -154,10 +160,12 @@ def markdown(study: dict) -> str:
         *_deadband_like(study),
         'Share of records called stiction, by valve or look-alike:',
         '',
-        '| kind | label | records | called stiction |',
-        '|---|---|---|---|',
-        *[f'| {k} | {"sticky" if lab else "healthy"} | {n} | {100 * r:.1f} % |'
-          for k, lab, n, r in study['sim_kinds']],
+        f'| kind | label | records | called stiction ({FORCED}) | {BANDED}: stiction | '
+        f'{BANDED}: cannot tell |',
+        '|---|---|---|---|---|---|',
+        *[f'| {k} | {"sticky" if lab else "healthy"} | {n} | {100 * r[0]:.1f} % | '
+          f'{100 * r[1]:.1f} % | {100 * r[2]:.1f} % |'
+          for k, lab, n, *r in study['sim_kinds']],
         '',
         *_reliability(study.get('sim_reliability')),
         '## Time',

@@ -18,6 +18,7 @@ decided records alone with the share decided.
 
 import numpy as np
 
+from stiction_ros.analysis.detection.detect import answer_of, BALANCED, BAND, THRESHOLD
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.analysis.signatures import he_curve_fit, horch, slip_events, yamashita
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
@@ -29,6 +30,18 @@ FEATURE_RULES = {
     'yamashita alone (published 0.25)': ('yamashita', yamashita.THRESHOLD),
     'slip_events alone (1 event)': ('slip_events', slip_events.THRESHOLD),
 }
+
+# The detector's two ways of answering, as the tables name them.
+FORCED = f'probability >= {THRESHOLD}'
+BANDED = f'cannot tell at {BALANCED[0]}-{BALANCED[1]}'
+# Which of the two the analyzer prints.
+SHIPPED = BANDED if BAND == BALANCED else FORCED
+ANSWER_FLAG = {'stiction': True, 'no stiction': False, 'cannot tell': None}
+
+
+def band_answer(p: float) -> bool | None:
+    """Return the band's answer at ``p`` as True, False or None (balanced: cannot tell)."""
+    return ANSWER_FLAG[answer_of(float(p), BALANCED)]
 
 
 def score(truth, answers) -> dict:
@@ -73,8 +86,9 @@ def sim_rows(test: dict, model, stuck_threshold: float) -> dict:
     detector that weighs it in (``stack.seed_logits``).
     """
     x, y = test['x'], test['y']
-    rows = {'learned detector (probability >= 0.5)':
-            score(y, list(model.probability(x, test.get('large_logit')) >= 0.5))
+    p = model.probability(x, test.get('large_logit')) if len(y) else np.zeros(0)
+    rows = {f'learned detector ({FORCED})': score(y, list(p >= THRESHOLD)) if len(y) else None,
+            f'learned detector, {BANDED}': score(y, [band_answer(v) for v in p])
             if len(y) else None,
             'old rule (signature vote, published weights)': score(y, list(test['old_rule'])),
             f'stuck-period test alone (OP share >= {stuck_threshold:.3g}, set on simulation)':
@@ -85,14 +99,22 @@ def sim_rows(test: dict, model, stuck_threshold: float) -> dict:
 
 
 def by_kind(test: dict, model) -> list:
-    """Return rows (kind, label, records, share called stiction) of the simulated set."""
-    p = model.probability(test['x'], test.get('large_logit')) >= 0.5
+    """
+    Return rows of the simulated set by kind: kind, label, records, shares.
+
+    The shares: called stiction at ``THRESHOLD``, and with the band called
+    stiction and left at cannot tell.
+    """
+    p = model.probability(test['x'], test.get('large_logit'))
+    band = np.array([band_answer(v) for v in p], dtype=object)
     rows = []
     for kind in sorted(set(test['kind'])):
         for lab in (True, False):
             m = (test['kind'] == kind) & (test['y'] == lab)
             if m.any():
-                rows.append((str(kind), lab, int(m.sum()), float(np.mean(p[m]))))
+                rows.append((str(kind), lab, int(m.sum()), float(np.mean(p[m] >= THRESHOLD)),
+                             float(np.mean([b is True for b in band[m]])),
+                             float(np.mean([b is None for b in band[m]]))))
     return rows
 
 

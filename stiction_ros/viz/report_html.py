@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from stiction_ros.analysis.detection.detect import THRESHOLD as DETECTOR_THRESHOLD
+from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND
 from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
 from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
     span, STYLE, table
@@ -74,7 +74,9 @@ def _verdict(report: dict) -> list:
         strength = (f'probability of stiction {num(st["probability"], 3)} (calibrated on '
                     'simulated loops)')
         how = (f'Without MV a detector trained on simulated loops decides: stiction when its '
-               f'calibrated probability is at or above {num(DETECTOR_THRESHOLD)}.')
+               f'calibrated probability is at or above {num(DETECTOR_BAND[1])}, no stiction '
+               f'below {num(DETECTOR_BAND[0])}, and cannot tell between, where the evidence '
+               'is balanced (an answer needs odds of 3:1).')
     else:
         strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
         how = ''

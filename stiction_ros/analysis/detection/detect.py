@@ -5,9 +5,10 @@ First the record must be judgeable (:mod:`resolve`); if not, the answer is
 ``cannot tell`` with the reason.  Otherwise the boosted trees score the
 feature vector, the stack (:mod:`stack`) weighs that score with the large
 network's logit, the calibration map turns the result into a probability,
-and the answer is ``stiction`` at ``THRESHOLD`` or above.  The evidence
-says which test saw what and where in time, so the engineer can check the
-claim on the trend.
+and the answer is ``stiction`` at ``BAND[1]`` or above, ``no stiction``
+under ``BAND[0]`` and ``cannot tell`` between (the evidence is balanced).
+The evidence says which test saw what and where in time, so the engineer
+can check the claim on the trend.
 """
 
 from dataclasses import dataclass, field
@@ -22,7 +23,15 @@ from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NO
 from stiction_ros.analysis.detection.stuck import record_row
 from stiction_ros.errors import DetectorFileError
 
+# The forced choice between the two answers, kept for the accuracy study.
 THRESHOLD = 0.5
+# An answer only when it is at least three times as likely as its opposite (at
+# even odds, as the map is calibrated): between these the evidence is
+# balanced, and a confident "no stiction" there would close a case that a
+# valve travel test should decide (docs/DETECTION.md, section 3).
+BALANCED = (0.25, 0.75)
+# The answers the analyzer gives: (THRESHOLD, THRESHOLD) would be the forced choice.
+BAND = BALANCED
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
 VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
 # A stuck period's OP this straight, on an error held this many standard
@@ -164,9 +173,8 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     # The large network reads the same fresh rows as the figures.
     logit = None if model.stack is None else stack.large_logit(op, pv, sp, integrating)
     p = float(model.probability(vec, logit)[0])
-    answer = 'stiction' if p >= THRESHOLD else 'no stiction'
-    reason = (f'learned detector: probability of stiction {probability_text(p)} '
-              f'({"at or above" if p >= THRESHOLD else "below"} {THRESHOLD})')
+    answer = answer_of(p)
+    reason = reason_of(p)
     leaned = leaned_on(model, vec, logit)
     # After a notable share of held rows, which says how much of the trend was read.
     lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned))
@@ -174,6 +182,26 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
                      ev['period_problem'], info,
                      {'stuck': ev['stuck'].to_json(sample_time, rows), **holds,
                       'leaned_on': leaned})
+
+
+def answer_of(p: float, band: tuple = BAND) -> str:
+    """Return the answer at the calibrated probability ``p``: ``band`` decides."""
+    if p >= band[1]:
+        return 'stiction'
+    return 'no stiction' if p < band[0] else 'cannot tell'
+
+
+def reason_of(p: float, band: tuple = BAND) -> str:
+    """Return the sentence that says why ``p`` gave its answer under ``band``."""
+    text = probability_text(p)
+    if p >= band[1]:
+        return f'learned detector: probability of stiction {text} (at or above {band[1]})'
+    if p < band[0]:
+        return f'learned detector: probability of stiction {text} (below {band[0]})'
+    lean = 'stiction' if p >= THRESHOLD else 'no stiction'
+    return (f'the evidence is balanced: probability of stiction {text}, between {band[0]} and '
+            f'{band[1]}, leaning to {lean}; an answer needs odds of 3:1, and a valve travel '
+            'test would tell: small OP steps in manual, each held until PV settles')
 
 
 def probability_text(p: float) -> str:
