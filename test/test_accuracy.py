@@ -78,3 +78,20 @@ def test_the_band_decides_only_at_three_to_one_and_counts_what_it_declines():
     assert band['balanced_accuracy_decided'] == pytest.approx(0.5 * (1 / 2 + 1 / 3))
     assert by_kind(test, model) == [('kano', True, 4, 0.5, 0.25, 0.5),
                                     ('linear', False, 4, 0.5, 0.5, 0.25)]
+
+
+def test_the_plant_rows_score_the_band_from_the_reports_probabilities():
+    from stiction_ros.cli.accuracy import plant_rows
+    from stiction_ros.study.accuracy_study import BANDED, FORCED
+    # A record that cannot be judged has no probability and stays cannot tell both ways.
+    prob = [0.9, 0.43, None, 0.1, 0.6, 0.2]
+    cases = [case(f'T{i}', i < 3) for i in range(6)]
+    for c, p in zip(cases, prob):
+        c['report'] = {'stiction': {'probability': p, 'signature_vote': {'detected': False},
+                                    'detector': {'features': {}}}}
+    rows = plant_rows(cases, [False] * 6, 0.5)
+    forced = next(v for k, v in rows.items() if FORCED in k)
+    band = next(v for k, v in rows.items() if BANDED in k)
+    assert (forced['tp'], forced['fp'], forced['cannot_tell_sticky']) == (1, 1, 1)
+    assert (band['tp'], band['fp'], band['cannot_tell_sticky'], band['cannot_tell_healthy']) \
+        == (1, 0, 2, 1)

@@ -5,7 +5,9 @@ The command runs as a subprocess, as an engineer runs it; its JSON report is
 checked against the truth of the simulation that made the CSV.
 """
 
+import html
 import json
+import re
 import subprocess
 import sys
 
@@ -177,13 +179,16 @@ def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
     lo, hi = BAND
     assert lo <= st['probability'] < hi, 'pick a record inside the band for this test'
     assert st['detected'] is None and st['answer'] == 'cannot tell'
-    assert st['detector']['judgeable']['ok'] and st['evidence']
-    assert 'balanced' in st['reason']
-    # The terminal's first line gives the reason with the probability; the page the rule.
+    # Judged and declined, which a script reads without parsing the reason.
+    assert st['detector']['judgeable']['ok'] and st['detector']['balanced'] is True
+    assert st['evidence'] and 'balanced' in st['reason']
+    assert st['score'] == st['probability']
+    # The terminal's first line gives the reason with the probability; so does the page.
     first = res.stdout.splitlines()[0]
     assert f'cannot tell (the evidence is balanced: probability of stiction ' \
            f'{probability_text(st["probability"])}' in first
-    assert 'cannot tell between' in (tmp_path / 'r.html').read_text()
+    page = html.unescape((tmp_path / 'r.html').read_text())
+    assert re.search(r'class="verdict">cannot tell \u2014 probability of stiction 0\.4', page)
 
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')

@@ -373,3 +373,5 @@ def test_an_answer_needs_odds_of_three_to_one():
         why = reason_of(p, BALANCED)
         assert 'balanced' in why and f'leaning to {lean};' in why and 'travel test' in why
     assert 'balanced' not in reason_of(0.8, BALANCED) + reason_of(0.1, BALANCED)
+    # Just under an edge is not printed as the edge.
+    assert 'probability of stiction 0.7499, between' in reason_of(0.7499, BALANCED)

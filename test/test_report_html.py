@@ -20,6 +20,7 @@ import zlib
 import numpy as np
 import pytest
 
+from stiction_ros.analysis.detection.detect import BAND
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.app.report_files import landscapes
 from stiction_ros.viz.figures import landscape_colours
@@ -211,7 +212,8 @@ def test_the_hammerstein_fit_and_the_detector_are_tables_and_rules_not_dumps(pag
     low, high = ham['S_interval']
     assert rows['S'][1] == f'{low:.4g} to {high:.4g}\u00a0%'
     assert 'PV units per % of OP' in rows['plant (ARX)'][1]
-    assert ('calibrated probability is at or above 0.75, no stiction below 0.25, and cannot '
+    lo, hi = BAND
+    assert (f'calibrated probability is at or above {hi}, no stiction below {lo}, and cannot '
             'tell between') in words(parsed)
     leaned = report['stiction']['detector']['leaned_on']
     rests = {row[0]: row[1:] for row in parsed.table_with('moved the score by')[1:]}

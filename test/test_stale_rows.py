@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from stiction_ros.analysis.detection import detect
+from stiction_ros.analysis.detection.detect import answer_of
 from stiction_ros.analysis.detection.stale import drop_held, MAX_HELD, stale_rows
 from stiction_ros.sim.corpus import draw_scenario, simulate
 
@@ -115,7 +116,7 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
                   sc.integrating)
     # The evidence leans to stiction (at 0.5 or more); held rows change neither it nor the answer.
     assert clean.probability >= 0.5 and held.probability == clean.probability
-    assert held.answer == clean.answer
+    assert held.answer == clean.answer == answer_of(clean.probability)
     assert held.details['held_rows'] == pause
     before, after = clean.details['stuck'], held.details['stuck']
     assert before['stuck_periods_s'] and all(a > at * sc.sample_time

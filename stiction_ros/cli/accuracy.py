@@ -31,8 +31,8 @@ from stiction_ros.cli.accuracy_markdown import markdown
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.study.accuracy import cross_validate, signature_alone, SIGNATURES
 from stiction_ros.study.accuracy_study import (
-    band_answer, BANDED, best_threshold, by_kind, FORCED, per_tag, reliability, score, sim_rows,
-    THRESHOLD, threshold_by_tag)
+    band_answer, BANDED, best_threshold, by_kind, FORCED, per_tag, reliability, score,
+    SHIPPED, sim_rows, THRESHOLD, threshold_by_tag)
 
 # Beside a checkout of the project, where the shared data live.
 DEFAULT_DATA = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'plant_loops'
@@ -85,10 +85,12 @@ def plant_rows(cases, cv_pred, stuck_threshold, by_tag_pred=None):
     p = [c['report']['stiction'].get('probability') for c in cases]
     old = [bool(c['report']['stiction'].get('signature_vote', {}).get('detected'))
            for c in cases]
-    rows = {f'**learned detector** (trained on simulation only; {FORCED})':
+    # The row of the answers the analyzer prints is in bold.
+    name = {k: (f'**learned detector**, {k}' if k == SHIPPED else f'learned detector, {k}')
+            for k in (FORCED, BANDED)}
+    rows = {name[FORCED] + ' (trained on simulation only)':
             score(truth, [None if v is None else bool(v >= THRESHOLD) for v in p]),
-            f'learned detector, {BANDED}':
-            score(truth, [None if v is None else band_answer(v) for v in p]),
+            name[BANDED]: score(truth, [None if v is None else band_answer(v) for v in p]),
             'old rule (signature vote, published weights)': score(truth, old),
             'old rule, voters and threshold chosen leave-one-tag-out': score(truth, cv_pred),
             **({} if by_tag_pred is None else {

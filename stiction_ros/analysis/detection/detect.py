@@ -178,10 +178,11 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     leaned = leaned_on(model, vec, logit)
     # After a notable share of held rows, which says how much of the trend was read.
     lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned))
+    # Judged but declined: a script tells this from a record that cannot be judged.
     return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
                      ev['period_problem'], info,
                      {'stuck': ev['stuck'].to_json(sample_time, rows), **holds,
-                      'leaned_on': leaned})
+                      'leaned_on': leaned, 'balanced': answer == 'cannot tell'})
 
 
 def answer_of(p: float, band: tuple = BAND) -> str:
@@ -194,6 +195,9 @@ def answer_of(p: float, band: tuple = BAND) -> str:
 def reason_of(p: float, band: tuple = BAND) -> str:
     """Return the sentence that says why ``p`` gave its answer under ``band``."""
     text = probability_text(p)
+    if float(text) in band and p not in band:
+        # 0.7499 would read "0.75, between 0.25 and 0.75".
+        text = f'{p:.4f}'
     if p >= band[1]:
         return f'learned detector: probability of stiction {text} (at or above {band[1]})'
     if p < band[0]:
