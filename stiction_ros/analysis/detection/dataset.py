@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from stiction_ros._blas import kernels
 from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
@@ -33,13 +34,14 @@ FOOTPRINT_WINDOW = 10
 # 1900000-1901999 the large network's four views, 2700000-2701999 the larger
 # calibration set, 2800000-2801999 the slip-jump figure, 2900000-2901999 the
 # score without deadband-like records, 3000000-3001999 the map without them,
-# 3100000-3101999 every part taught without them; they are spent.
+# 3100000-3101999 every part taught without them, 3300000-3301999 the band of
+# balanced evidence; they are spent.
 # (2000000-2599999 are the networks' corpora, 3200000-3209999 the large
 # network's second one.)  CALIBRATION grew from 100000-101499 on
 # 2026-11-27.
 TRAIN = range(0, 4500)
 CALIBRATION = range(100_000, 103_000)
-TEST = range(3_300_000, 3_302_000)
+TEST = range(3_400_000, 3_402_000)
 
 
 def stiction_footprint(sc, rec: dict) -> float:
@@ -94,8 +96,9 @@ def featurize_seed(seed: int) -> tuple:
 
 
 # The code a record's features depend on: a cached set is reused only while
-# every one of these files is unchanged.
-SOURCES = ('analysis/detection/features.py', 'analysis/detection/stuck.py',
+# every one of these files is unchanged (dsp.py was missing until 2026-11-28).
+SOURCES = ('_blas.py', 'analysis/dsp.py', 'analysis/detection/features.py',
+           'analysis/detection/stuck.py',
            'analysis/detection/cnn.py', 'resources/stiction_cnn.npz',
            'analysis/detection/output_error.py', 'analysis/detection/prediction_error.py',
            'analysis/detection/resolve.py', 'analysis/detection/dataset.py',
@@ -105,9 +108,9 @@ SOURCES = ('analysis/detection/features.py', 'analysis/detection/stuck.py',
 
 
 def code_version() -> str:
-    """Return a hash of the sources the features depend on (for the cache)."""
+    """Return a hash of the sources the features depend on and of the BLAS kernels used."""
     root = Path(__file__).resolve().parents[2]
-    h = hashlib.sha256()
+    h = hashlib.sha256(kernels().encode())
     for rel in SOURCES:
         p = root / rel
         for f in sorted(p.rglob('*.py')) if p.is_dir() else [p]:

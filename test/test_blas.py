@@ -1,0 +1,65 @@
+"""The detector's figures do not depend on which BLAS kernels the host would choose."""
+
+import json
+import os
+import platform
+import subprocess
+import sys
+
+import pytest
+
+from stiction_ros import _blas
+from stiction_ros.analysis.detection import dataset
+
+X86_AVX2 = (platform.machine().lower() in ('x86_64', 'amd64')
+            and set(_blas.NEEDS) <= _blas._cpu_flags())
+AVX512 = 'avx512f' in _blas._cpu_flags()
+# Forcing the SkylakeX kernels plays a host whose OpenBLAS would choose them.
+SKYLAKE = {_blas.CORETYPE: 'SkylakeX'}
+
+KERNELS = """
+import json, stiction_ros, numpy, scipy.linalg
+from threadpoolctl import threadpool_info
+print(json.dumps({'state': stiction_ros._blas.kernels(),
+                  'openblas': [i.get('architecture') for i in threadpool_info()
+                               if i['internal_api'] == 'openblas']}))
+"""
+FIGURES = """
+import json, stiction_ros
+from stiction_ros.analysis.detection.dataset import featurize_seed
+print(json.dumps([[float(v) for v in featurize_seed(s)[1]] for s in (1, 2, 5)]))
+"""
+
+
+def run(code: str, **env: str):
+    clean = {k: v for k, v in os.environ.items() if k not in (_blas.CORETYPE, _blas.NATIVE)}
+    res = subprocess.run([sys.executable, '-c', code], env={**clean, **env},
+                         capture_output=True, text=True, timeout=300, check=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not X86_AVX2, reason='the Haswell kernels need an x86-64 with AVX2 and FMA')
+def test_every_openblas_runs_the_pinned_kernels_whatever_the_host_would_choose():
+    for env in ({}, SKYLAKE):
+        out = run(KERNELS, **env)
+        assert out['state'] == _blas.KERNEL
+        # NumPy's OpenBLAS and SciPy's, loaded later, both.
+        assert len(out['openblas']) >= 2 and set(out['openblas']) == {_blas.KERNEL}
+
+
+@pytest.mark.skipif(not (X86_AVX2 and AVX512), reason='the SkylakeX kernels need AVX-512')
+def test_the_figures_are_the_pinned_kernels_figures_on_any_host():
+    pinned = run(FIGURES)
+    assert run(FIGURES, **SKYLAKE) == pinned
+    # Unpinned, the other kernels change the figures: the pin is what holds them.
+    native = run(FIGURES, **SKYLAKE, **{_blas.NATIVE: '1'})
+    assert native != pinned
+    assert run(KERNELS, **SKYLAKE, **{_blas.NATIVE: '1'})['openblas'][0] == 'SkylakeX'
+
+
+def test_numpy_loaded_first_is_said_and_keys_the_cache_apart(monkeypatch):
+    out = run('import numpy\n' + KERNELS)
+    assert out['state'].startswith('native')
+    pinned = dataset.code_version()
+    monkeypatch.setattr(dataset, 'kernels', lambda: out['state'])
+    assert dataset.code_version() != pinned
