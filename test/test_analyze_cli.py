@@ -152,11 +152,17 @@ def test_truncated_bag_is_analysed_from_its_readable_part(tmp_path):
 
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
-def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
-    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC46005_0902*'))[0]
+def plant_verdict(tmp_path, pattern):
+    """Return the run and the report's stiction section of the sticky plant file ``pattern``."""
+    f = sorted((PLANT_LOOPS / 'stiction').glob(pattern))[0]
     res = analyze(f, '--json', tmp_path / 'r.json', '--html', tmp_path / 'r.html')
     assert res.returncode == 0, res.stderr
-    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    return res, json.loads((tmp_path / 'r.json').read_text())['stiction']
+
+
+@pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
+def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
+    res, st = plant_verdict(tmp_path, '*FIC46005_0902*')
     assert st['answer'] in ('stiction', 'no stiction')
     assert 0.0 <= st['probability'] <= 1.0
     assert st['detector']['judgeable']['ok'] and st['evidence']
@@ -172,10 +178,7 @@ def test_a_plant_loop_verdict_carries_probability_and_evidence(tmp_path):
 def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
     # A sticky FIC20102 record the shipped detector puts between the band's
     # edges (docs/ACCURACY.md): judged, but not at odds of 3:1 either way.
-    f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC20102_0609_0957*'))[0]
-    res = analyze(f, '--json', tmp_path / 'r.json', '--html', tmp_path / 'r.html')
-    assert res.returncode == 0, res.stderr
-    st = json.loads((tmp_path / 'r.json').read_text())['stiction']
+    res, st = plant_verdict(tmp_path, '*FIC20102_0609_0957*')
     lo, hi = BAND
     assert lo <= st['probability'] < hi, 'pick a record inside the band for this test'
     assert st['detected'] is None and st['answer'] == 'cannot tell'
