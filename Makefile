@@ -48,7 +48,7 @@ accuracy: venv
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
-# stiction_ros/resources/stiction_detector.npz.  About 10-13 min on 2 cores from scratch
+# stiction_ros/resources/stiction_detector.npz.  About 11-14 min on 2 cores from scratch
 # (the figures of 7 500 simulated records, and the slip footprints of the sticky calibration
 # records), under a minute once out/detector_cache holds them.
 detector: venv

@@ -1,5 +1,5 @@
 """
-The same BLAS kernels on every x86-64 host, so that the detector's figures do not depend on it.
+The same BLAS kernels on every x86-64 host, and which code the figures ran on.
 
 OpenBLAS chooses its kernels for the processor it finds: Haswell's on an AVX2
 machine, SkylakeX's on an Intel one with AVX-512, and they add in different
@@ -12,9 +12,18 @@ threshold, and ``make detector`` writes other trees than the shipped ones.
 :func:`pin` asks OpenBLAS for its Haswell kernels, which run on every x86-64
 processor with AVX2 and FMA (Intel since 2013, AMD since 2015).  OpenBLAS
 reads the choice when it loads, so the package does this on import, before
-NumPy or SciPy load theirs; a process that loaded NumPy first keeps its own
-kernels, and :func:`kernels` says so.  Set ``STICTION_ROS_NATIVE_BLAS`` (to
-anything) to keep the host's choice; on another processor nothing is pinned.
+NumPy or SciPy load theirs, overriding an ``OPENBLAS_CORETYPE`` of the
+user's (the state says so); child processes inherit it.  A process that
+loaded NumPy first keeps its own kernels.  Set ``STICTION_ROS_NATIVE_BLAS``
+(to anything) to keep the host's choice; without AVX2 and FMA, off x86-64,
+or without ``/proc/cpuinfo`` (not Linux) nothing is pinned.
+
+That is not all of it: NumPy chooses its own code for ``exp`` and ``log`` by
+processor too (AVX-512 or AVX2), which moves some figures by about 1e-16,
+so a host without AVX-512 still computes other figures than this project's
+machine (a review measured 3 of 10 records).  :func:`kernels` names
+OpenBLAS's kernels and NumPy's dispatch targets, so that cached figures are
+never mixed between them.
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ def pin() -> str:
     Returns ``KERNEL`` when pinned, otherwise the reason it was not.
     """
     global _state
+    mine = os.environ.get(CORETYPE)
     if os.environ.get(NATIVE):
         _state = f'native ({NATIVE} is set)'
     elif platform.machine().lower() not in ('x86_64', 'amd64'):
@@ -60,10 +70,38 @@ def pin() -> str:
         _state = 'native (NumPy was loaded before stiction_ros)'
     else:
         os.environ[CORETYPE] = KERNEL
-        _state = KERNEL
+        _state = KERNEL if mine in (None, KERNEL) else f'{KERNEL} (over {CORETYPE}={mine})'
+    if _state.startswith('native'):
+        # Child processes that start afresh (spawn, forkserver) decide the same.
+        os.environ[NATIVE] = '1'
+    return _state
+
+
+def state() -> str:
+    """Return what :func:`pin` did: ``KERNEL``, or why the host's kernels were kept."""
     return _state
 
 
 def kernels() -> str:
-    """Return the BLAS kernels this process's figures were computed with (for cache keys)."""
-    return _state
+    """
+    Return what this process's figures were computed with (for cache keys).
+
+    The pin's state, each loaded OpenBLAS's kernels and version, and NumPy's
+    enabled dispatch targets.  NumPy and SciPy are loaded here, so the
+    answer does not change with what was loaded before.
+    """
+    import numpy as np
+    import scipy.linalg  # noqa: F401 (loads SciPy's own OpenBLAS)
+    parts = [_state, f'numpy {np.__version__}']
+    try:
+        from threadpoolctl import threadpool_info
+        parts += sorted(f'{i.get("internal_api")} {i.get("version")} {i.get("architecture")}'
+                        for i in threadpool_info() if i.get('user_api') == 'blas')
+    except ImportError:     # scikit-learn's installs bring it
+        parts.append('blas unknown')
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+        parts += [t for t in __cpu_dispatch__ if __cpu_features__.get(t)]
+    except ImportError:     # NumPy 1.x keeps them elsewhere
+        parts.append('dispatch unknown')
+    return '; '.join(parts)

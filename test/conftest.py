@@ -5,6 +5,10 @@ import os
 
 import pytest
 
+# Before any test module loads NumPy: the BLAS kernels the package pins (_blas.py),
+# so that one test file run alone computes what the whole suite does.
+import stiction_ros  # noqa: F401,I100
+
 # Set before any test imports rclpy, and inherited by every node process the
 # tests start: discovery only on 127.0.0.1, and a domain of our own so that
 # parallel runs on the same machine do not see each other.
