@@ -21,6 +21,7 @@ import numpy as np
 from stiction_ros.analysis.detection.detect import answer_of, BALANCED, BAND, THRESHOLD
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.analysis.signatures import he_curve_fit, horch, slip_events, yamashita
+from stiction_ros.analysis.verdict import ANSWER
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 
 # Published thresholds of the single signatures, read from the feature vector.
@@ -36,7 +37,7 @@ FORCED = f'probability >= {THRESHOLD}'
 BANDED = f'cannot tell at {BALANCED[0]}-{BALANCED[1]}'
 # Which of the two the analyzer prints.
 SHIPPED = BANDED if BAND == BALANCED else FORCED
-ANSWER_FLAG = {'stiction': True, 'no stiction': False, 'cannot tell': None}
+ANSWER_FLAG = {word: flag for flag, word in ANSWER.items()}
 
 
 def band_answer(p: float) -> bool | None:
