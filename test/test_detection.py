@@ -24,7 +24,15 @@ def test_cannot_tell_reasons():
     assert judgeable(op, pv, 1.0).ok
     assert judgeable(op[:MIN_SAMPLES - 1], pv[:MIN_SAMPLES - 1], 1.0).code == 'too_short'
     # A dead historian tag: PV is one tiny constant (seen in a plant export).
-    assert judgeable(op, np.full(600, 3.5e-44), 1.0).code == 'pv_constant'
+    j = judgeable(op, np.full(600, 3.5e-44), 1.0)
+    assert j.code == 'pv_constant'
+    # Zero flow under a moving OP: a shut valve or a low-flow cut-off, said with
+    # where OP went; a constant that is not zero is the transmitter's or the tag's.
+    assert 'low-flow cut-off' in j.reason and f'{op.min():.3g} and {op.max():.3g} %' in j.reason
+    k = judgeable(op, np.full(600, 7.5), 1.0)
+    assert k.code == 'pv_constant' and 'one value' in k.reason and 'cut-off' not in k.reason
+    # OP that does not move asked nothing of the valve: no shut valve to speak of.
+    assert 'cut-off' not in judgeable(np.full(600, 42.0), np.zeros(600), 1.0).reason
     assert judgeable(np.full(600, 42.0), pv, 1.0).code == 'no_excitation'
     # OP exported as a 0-1 fraction: refused, and the reason says what to do.
     j = judgeable(op / 100.0 - 0.1, pv, 1.0)

@@ -42,6 +42,8 @@ MIN_DISTINCT = 5
 RELATIVE_FLOOR = 1e-9
 # OP moving less than this (% of span, peak to peak) never asked the valve to move.
 MIN_OP_TRAVEL = 0.05
+# |PV| at or below this throughout reads as zero (a dead export's 3.5e-44 too).
+ZERO = 1e-12
 # Lag-1 autocorrelation below this means a cycle near the Nyquist frequency.
 ALTERNATING = -0.35
 # Not in control: |median(SP - PV)| at least this many times PV's range, the
@@ -82,6 +84,22 @@ def _frozen(x: np.ndarray) -> bool:
             or float(np.ptp(x)) <= RELATIVE_FLOOR * scale or float(np.ptp(x)) < 1e-30)
 
 
+def _constant_pv_reason(op: np.ndarray, pv: np.ndarray) -> str:
+    k = int(np.unique(pv).size)
+    values = 'one value' if k == 1 else f'{k} distinct values'
+    low, high = float(np.min(op)), float(np.max(op))
+    if float(np.max(np.abs(pv))) <= ZERO and high - low >= MIN_OP_TRAVEL:
+        # A flow of exactly zero under a moving OP: nothing passed the valve,
+        # which a shut valve and a transmitter's low-flow cut-off both give.
+        return (f'PV reads zero in every sample while OP moved between {low:.3g} and '
+                f'{high:.3g} %: for a flow, nothing passed the valve (shut: stuck, or not '
+                f'yet off its seat at this OP) or the transmitter is below its low-flow '
+                f'cut-off; otherwise a dead transmitter or historian tag. The record shows '
+                f'nothing of how the valve moves; a valve travel test would')
+    return (f'PV is constant ({values}, range {float(np.ptp(pv)):.3g}): the measurement '
+            f'shows nothing of the valve; check the transmitter or the historian tag')
+
+
 def lag1(x: np.ndarray) -> float:
     """Return the lag-1 autocorrelation of ``x`` about its mean (0 for a constant)."""
     x = x - x.mean()
@@ -103,10 +121,7 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
         return Judgeable(False, 'too_short',
                          f'too short: {n} usable samples, at least {MIN_SAMPLES} needed')
     if _frozen(pv):
-        return Judgeable(False, 'pv_constant',
-                         f'PV is constant ({np.unique(pv).size} distinct values, range '
-                         f'{float(np.ptp(pv)):.3g}): the measurement shows nothing of the '
-                         f'valve; check the transmitter or the historian tag')
+        return Judgeable(False, 'pv_constant', _constant_pv_reason(op, pv))
     if _frozen(op) or float(np.ptp(op)) < MIN_OP_TRAVEL:
         # Some historians export OP as a 0-1 fraction; every threshold here is in %.
         fraction = (0.0 < float(np.ptp(op)) and float(np.max(np.abs(op))) <= 1.0
