@@ -41,10 +41,14 @@ demo: venv
 reproduce: venv
 	$(PY) -m stiction_ros.cli.study --out docs
 
+# NumPy's code for a processor with AVX2 and no AVX-512, whatever the host, where
+# the figures' last bits matter (stiction_ros/_blas.py; its AVX2 exp is slower).
+PINNED := NPY_DISABLE_CPU_FEATURES='X86_V4 AVX512_ICL AVX512_SPR'
+
 # The verdict on held-out data: the shared plant loops by valve tag, and simulated
 # loops whose seeds training never saw; every method beside the old rule (about 10 min).
 accuracy: venv
-	$(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
+	$(PINNED) $(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
@@ -52,7 +56,7 @@ accuracy: venv
 # (the figures of 7 500 simulated records, and the slip footprints of the sticky calibration
 # records), under a minute once out/detector_cache holds them.
 detector: venv
-	$(PY) -m stiction_ros.cli.detector
+	$(PINNED) $(PY) -m stiction_ros.cli.detector
 
 # Retrain the detector's 1-D CNN (stiction_ros/resources/stiction_cnn.npz) on its own
 # simulated corpus, about 25 min on 2 cores; needs PyTorch (CPU), installed here.
@@ -102,7 +106,7 @@ bench: venv
 # The learned stiction detector's cost per plant loop against the old signature
 # vote (about a minute): its section of docs/BENCHMARKS.md.
 bench-detector: venv
-	$(PY) -m bench.detector_bench
+	$(PINNED) $(PY) -m bench.detector_bench
 
 # --explain run blind on concealed closed-loop cases, on scoring seeds nothing was tuned
 # on (about 10 min on 2 cores): the friction effects (65 cases), then the instrument and

@@ -18,12 +18,15 @@ loaded NumPy first keeps its own kernels.  Set ``STICTION_ROS_NATIVE_BLAS``
 (to anything) to keep the host's choice; without AVX2 and FMA, off x86-64,
 or without ``/proc/cpuinfo`` (not Linux) nothing is pinned.
 
-That is not all of it: NumPy chooses its own code for ``exp`` and ``log`` by
-processor too (AVX-512 or AVX2), which moves some figures by about 1e-16,
-so a host without AVX-512 still computes other figures than this project's
-machine (a review measured 3 of 10 records).  :func:`kernels` names
-OpenBLAS's kernels and NumPy's dispatch targets, so that cached figures are
-never mixed between them.
+NumPy chooses its own code for ``exp`` and ``log`` by processor too (AVX-512
+or AVX2), which moves some figures by about 1e-16 (a review measured 3 of 10
+records).  That is not pinned on import: NumPy's AVX2 code is slower (``exp``
+five times here) for everything the user's process does.  ``make detector``
+and ``make accuracy``, where the bits matter, set ``NUMPY_PIN`` to
+``NUMPY_ABOVE_AVX2`` instead, so that NumPy runs a plain AVX2 processor's
+code on any host.  :func:`kernels` names OpenBLAS's kernels and NumPy's
+enabled dispatch targets, so that cached figures are never mixed between
+them.
 """
 
 from __future__ import annotations
@@ -37,6 +40,10 @@ CORETYPE = 'OPENBLAS_CORETYPE'
 NATIVE = 'STICTION_ROS_NATIVE_BLAS'
 # The instructions the Haswell kernels use, as /proc/cpuinfo names them.
 NEEDS = ('avx2', 'fma')
+# NumPy's run-time choice of code, and its dispatch targets above AVX2 (NumPy
+# 2.4's names); the Makefile names them all (test/test_blas.py checks).
+NUMPY_PIN = 'NPY_DISABLE_CPU_FEATURES'
+NUMPY_ABOVE_AVX2 = ('X86_V4', 'AVX512_ICL', 'AVX512_SPR')
 
 _state = 'not pinned yet'
 

@@ -197,15 +197,16 @@ def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
 def test_a_frozen_pv_gets_cannot_tell_with_the_reason(tmp_path):
-    # FIC10112's PV is 3.5e-44 throughout: a dead tag, not a valve.
+    # FIC10112's PV is 3.5e-44 throughout while OP moves: no flow, or a dead tag.
     f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC10112_0630*'))[0]
     res = analyze(f, '--json', tmp_path / 'r.json')
     assert res.returncode == 0, res.stderr
     st = json.loads((tmp_path / 'r.json').read_text())['stiction']
     assert st['detected'] is None and st['answer'] == 'cannot tell'
     assert st['detector']['judgeable']['code'] == 'pv_constant'
-    assert st['apparent_S'] is None and 'PV is constant' in st['reason']
-    assert 'cannot tell (PV is constant' in res.stdout
+    assert st['apparent_S'] is None and 'PV reads zero in every sample' in st['reason']
+    assert 'cannot tell (PV reads zero in every sample while OP moved between 1.23' \
+        in res.stdout
 
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')

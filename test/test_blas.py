@@ -3,6 +3,7 @@
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 
@@ -75,3 +76,29 @@ def test_numpys_own_processor_choice_keys_the_cache_apart():
     # NumPy's exp and log for AVX2 alone, as on a host without AVX-512: other
     # figures in their last bits, so another key for the cache.
     assert run(KEY, NPY_DISABLE_CPU_FEATURES='X86_V4 AVX512_ICL') != run(KEY)
+
+
+def _makefile_pin() -> tuple:
+    text = open(os.path.join(os.path.dirname(__file__), '..', 'Makefile')).read()
+    found = re.search(r"^PINNED := (\w+)='([^']*)'", text, re.M)
+    assert found, 'the Makefile defines PINNED'
+    return found.group(1), tuple(found.group(2).split())
+
+
+def test_the_makefile_pins_every_numpy_target_above_avx2():
+    name, targets = _makefile_pin()
+    assert name == _blas.NUMPY_PIN and targets == _blas.NUMPY_ABOVE_AVX2
+    from numpy._core._multiarray_umath import __cpu_dispatch__
+    # A NumPy with a new target above AVX2 would let a host with it run other code.
+    above = [t for t in __cpu_dispatch__ if t.startswith(('X86_V4', 'AVX512'))]
+    assert set(above) <= set(targets)
+
+
+@pytest.mark.skipif(not X86_AVX2, reason="NumPy's AVX2 code needs AVX2")
+def test_pinned_numpy_runs_the_code_an_avx2_processor_runs():
+    name, targets = _makefile_pin()
+    code = ('import json\nfrom numpy._core._multiarray_umath import __cpu_dispatch__, '
+            '__cpu_features__\nprint(json.dumps([t for t in __cpu_dispatch__ '
+            'if __cpu_features__.get(t)]))')
+    # What a processor with AVX2 and FMA but no AVX-512 enables in the same NumPy.
+    assert run(code, **{name: ' '.join(targets)}) == ['X86_V3']

@@ -52,3 +52,17 @@ def test_training_twice_gives_the_same_file(small, tmp_path):
     for k in model_file.ARRAYS:
         assert np.array_equal(getattr(a, k), getattr(b, k)), k
     assert np.array_equal(a.probability(d['x']), b.probability(d['x']))
+
+
+def test_the_make_target_writes_a_model_that_names_the_code_its_figures_ran_on(
+        tmp_path, capsys):
+    # stiction-detector end to end on the fewest records it takes (the make target's command).
+    from stiction_ros._blas import kernels
+    from stiction_ros.cli.detector import main
+    out = tmp_path / 'd.npz'
+    assert main(['--train', '100', '--calibration', '50', '--jobs', '1',
+                 '--cache', str(tmp_path / 'cache'), '--out', str(out)]) == 0
+    model = model_file.load(out, FEATURE_NAMES)
+    assert model.meta['kernels'] == kernels()
+    assert model.meta['train_seeds'] == [dataset.TRAIN.start, dataset.TRAIN.start + 100]
+    assert f'figures computed with: {kernels()}' in capsys.readouterr().err

@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from stiction_ros._blas import kernels
 from stiction_ros.analysis.detection import cnn, dataset, deadband_like, model_file, stack
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.cli.text import description, pipe_safe
@@ -54,6 +55,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     t0 = time.perf_counter()
     tr_seeds = range(dataset.TRAIN.start, dataset.TRAIN.start + n_train)
     ca_seeds = range(dataset.CALIBRATION.start, dataset.CALIBRATION.start + n_cal)
+    say(f'figures computed with: {kernels()}')
     say(f'training set: {n_train} simulated records (seeds {tr_seeds.start}-{tr_seeds.stop - 1})')
     tr = dataset.build(tr_seeds, jobs, cache=cache)
     # Taught as sticky, they teach "a deadband is stiction", and backlash is healthy.
@@ -77,7 +79,9 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
             'calibration_seeds': [ca_seeds.start, ca_seeds.stop],
             'skipped': {'train': tr['skipped'], 'calibration': ca['skipped']},
             'sklearn': sklearn.__version__, 'params': PARAMS, 'cnn_sha256': cnn.load().sha256,
-            'date': datetime.date.today().isoformat()}
+            'date': datetime.date.today().isoformat(),
+            # What the figures ran on: the same on two hosts, the same trees.
+            'kernels': kernels()}
     large = stack.network()
     model, clf = train(tr['x'], tr['y'], ca['x'], ca['y'], FEATURE_NAMES, meta)
     trees_only = balanced_accuracy(confusion(ca['y'], model.probability(ca['x']) >= 0.5))
