@@ -21,8 +21,11 @@ def plant_folder(tmp_path_factory):
     if loops is None:
         pytest.skip('the shared plant loops are not beside this checkout')
     root = tmp_path_factory.mktemp('audit')
+    # With two answered "cannot tell" for different reasons: balanced evidence, a PV of zero.
     picks = sorted((loops / 'stiction').glob('*.txt'))[:1] + \
-        sorted((loops / 'no_stiction').glob('*.txt'))[:1]
+        sorted((loops / 'no_stiction').glob('*.txt'))[:1] + \
+        sorted((loops / 'stiction').glob('*FIC20102_0609_0957*')) + \
+        sorted((loops / 'stiction').glob('*FIC10112_0630*'))
     for i, src in enumerate(picks):
         (root / f'unit{i}').mkdir()
         shutil.copy(src, root / f'unit{i}' / src.name)
@@ -55,7 +58,11 @@ def test_a_folder_is_analysed_recording_by_recording_and_a_bad_one_is_one_row(
         report = json.loads(Path(row['report']).read_text())
         assert report['stiction']['detected'] == row['detected']
     out = capsys.readouterr().out
-    assert '4 recordings' in out and '1 failed' in out and 'error:' in out
+    assert '6 recordings' in out and '1 failed' in out and 'error:' in out
+    # The tally tells a case for a travel test from a record that cannot be judged.
+    why = {p.name: rows[p.name].get('why_not') for p in picks}
+    assert sorted(w for w in why.values() if w) == ['evidence balanced', 'pv constant']
+    assert '2 cannot tell (1 evidence balanced, 1 pv constant)' in out
 
 
 def test_the_same_audit_runs_on_a_dask_cluster(plant_folder, tmp_path):

@@ -103,6 +103,8 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         row['error'] = str(exc)
     else:
         st = report['stiction']
+        if st['detected'] is None:
+            row['why_not'] = _why_not(st)
         row.update(ok=True, detected=st['detected'], score=st['score'],
                    fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
                    summary=summary_line(report))
@@ -114,6 +116,15 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
             row['report'] = str(target)
     row['seconds'] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def _why_not(st: dict) -> str:
+    """Return in two or three words why a recording got no answer (the tally's breakdown)."""
+    det = st.get('detector') or {}
+    if det.get('balanced'):
+        return 'evidence balanced'
+    code = (det.get('judgeable') or {}).get('code')
+    return code.replace('_', ' ') if code else 'other'
 
 
 def _results(paths, options, jobs, scheduler, out_dir, root):
@@ -185,6 +196,14 @@ class Batch:
                 word = VERDICT_WORDS[r['detected']]
                 tally[word] = tally.get(word, 0) + 1
         return tally
+
+    def why_not(self) -> dict[str, int]:
+        """Return {reason: recordings} over the recordings answered ``cannot tell``."""
+        out: dict[str, int] = {}
+        for r in self.rows:
+            if r['ok'] and r['detected'] is None:
+                out[r['why_not']] = out.get(r['why_not'], 0) + 1
+        return out
 
     def summary(self) -> dict:
         """Return the batch report (``--json``): counts, time, workers and every row."""

@@ -145,14 +145,17 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
 
 def print_many(batch: Batch) -> int:
     """Print a line per recording and the tally; return the exit status."""
-    from stiction_ros.app.report_text import batch_row_text
+    from stiction_ros.app.report_text import batch_row_text, VERDICT_WORDS
     for row in batch.rows:
         print(batch_row_text(row))
     failed, where = batch.failed, batch.workers
     rows, seconds = batch.rows, batch.seconds
+    why = ', '.join(f'{n} {w}' for w, n in sorted(batch.why_not().items()))
+    # A balanced case wants a travel test, an unjudgeable one another record.
+    words = [f'{n} {w}' + (f' ({why})' if w == VERDICT_WORDS[None] and why else '')
+             for w, n in sorted(batch.tally().items())]
     print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
-          + ', '.join(f'{n} {w}' for w, n in sorted(batch.tally().items()))
-          + (f', {failed} failed' if failed else ''))
+          + ', '.join(words) + (f', {failed} failed' if failed else ''))
     return EXIT_INPUT if failed else 0
 
 
