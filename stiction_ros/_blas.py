@@ -22,11 +22,11 @@ NumPy chooses its own code for ``exp`` and ``log`` by processor too (AVX-512
 or AVX2), which moves some figures by about 1e-16 (a review measured 3 of 10
 records).  That is not pinned on import: NumPy's AVX2 code is slower (``exp``
 five times here) for everything the user's process does.  ``make detector``
-and ``make accuracy``, where the bits matter, set ``NUMPY_PIN`` to
-``NUMPY_ABOVE_AVX2`` instead, so that NumPy runs a plain AVX2 processor's
-code on any host.  :func:`kernels` names OpenBLAS's kernels and NumPy's
-enabled dispatch targets, so that cached figures are never mixed between
-them.
+and ``make accuracy`` alone, where the bits matter, set ``NUMPY_PIN`` to
+``NUMPY_ABOVE_AVX2`` on x86-64, so that NumPy runs a plain AVX2 processor's
+code on any host (``make bench-detector`` times what users run: unpinned).
+:func:`kernels` names OpenBLAS's kernels and NumPy's enabled dispatch
+targets, so that cached figures are never mixed between them.
 """
 
 from __future__ import annotations

@@ -197,15 +197,15 @@ def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
 def test_a_frozen_pv_gets_cannot_tell_with_the_reason(tmp_path):
-    # FIC10112's PV is 3.5e-44 throughout while OP moves: no flow, or a dead tag.
+    # FIC10112's PV is 3.5e-44 throughout: the bits of 25, read as a float by the export.
     f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC10112_0630*'))[0]
     res = analyze(f, '--json', tmp_path / 'r.json')
     assert res.returncode == 0, res.stderr
     st = json.loads((tmp_path / 'r.json').read_text())['stiction']
     assert st['detected'] is None and st['answer'] == 'cannot tell'
     assert st['detector']['judgeable']['code'] == 'pv_constant'
-    assert st['apparent_S'] is None and 'PV reads zero in every sample' in st['reason']
-    assert 'cannot tell (PV reads zero in every sample while OP moved between 1.23' \
+    assert st['apparent_S'] is None and 'the whole number 25' in st['reason']
+    assert 'cannot tell (PV is 3.503e-44 in every sample, the bits of the whole number 25' \
         in res.stdout
 
 

@@ -16,7 +16,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope='module')
 def plant_folder(tmp_path_factory):
-    # Two real plant loops in nested folders, a broken CSV and a file that is no recording.
+    # Four real plant loops in nested folders, a broken CSV and a file that is no recording.
     loops = plant_loops_dir()
     if loops is None:
         pytest.skip('the shared plant loops are not beside this checkout')

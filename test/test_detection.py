@@ -23,12 +23,14 @@ def test_cannot_tell_reasons():
     pv = 10 + noisy(600, 2)
     assert judgeable(op, pv, 1.0).ok
     assert judgeable(op[:MIN_SAMPLES - 1], pv[:MIN_SAMPLES - 1], 1.0).code == 'too_short'
-    # A dead historian tag: PV is one tiny constant (seen in a plant export).
+    # A plant export's PV of 3.5e-44 throughout: the bits of 25 read as a float.
     j = judgeable(op, np.full(600, 3.5e-44), 1.0)
-    assert j.code == 'pv_constant'
-    # Zero flow under a moving OP: a shut valve or a low-flow cut-off, said with
-    # where OP went; a constant that is not zero is the transmitter's or the tag's.
+    assert j.code == 'pv_constant' and 'whole number 25' in j.reason
+    # Zero under a moving OP: nothing passed, or a range's bottom, said with where OP went;
+    # a constant that is not zero is the transmitter's or the tag's.
+    j = judgeable(op, np.zeros(600), 1.0)
     assert 'low-flow cut-off' in j.reason and f'{op.min():.3g} and {op.max():.3g} %' in j.reason
+    assert 'fraction' in judgeable(op / 100.0 - 0.1, np.zeros(600), 1.0).reason
     k = judgeable(op, np.full(600, 7.5), 1.0)
     assert k.code == 'pv_constant' and 'one value' in k.reason and 'cut-off' not in k.reason
     # OP that does not move asked nothing of the valve: no shut valve to speak of.

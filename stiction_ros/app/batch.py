@@ -124,7 +124,13 @@ def _why_not(st: dict) -> str:
     if det.get('balanced'):
         return 'evidence balanced'
     code = (det.get('judgeable') or {}).get('code')
-    return code.replace('_', ' ') if code else 'other'
+    if code:
+        return code.replace('_', ' ')
+    # No check named: the reason's first words say more than a bare "other".
+    head = str(st.get('reason') or 'no reason given')
+    for mark in ':;(':
+        head = head.split(mark, 1)[0]
+    return ' '.join(head.split()[:5]) or 'no reason given'
 
 
 def _results(paths, options, jobs, scheduler, out_dir, root):
@@ -202,7 +208,9 @@ class Batch:
         out: dict[str, int] = {}
         for r in self.rows:
             if r['ok'] and r['detected'] is None:
-                out[r['why_not']] = out.get(r['why_not'], 0) + 1
+                # A row from an older worker (a Dask cluster's) may lack it.
+                why = r.get('why_not', 'reason not given')
+                out[why] = out.get(why, 0) + 1
         return out
 
     def summary(self) -> dict:

@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from stiction_ros._blas import kernels
 from stiction_ros.analysis.detection import cnn, dataset, deadband_like, FEATURE_NAMES, \
     load_model, stack
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
@@ -149,6 +150,8 @@ def main(argv=None):
         'date': datetime.date.today().isoformat(),
         'machine': f'{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, '
                    f'Python {platform.python_version()})',
+        # What this run's figures ran on (the Makefile pins NumPy's code).
+        'kernels': kernels(),
         'data': str(args.data), 'model': model.meta, 'cnn': cnn.load().meta,
         'cnn_large': None if model.stack is None else stack.network().meta,
         'stuck_threshold': stuck_th,

@@ -7,7 +7,8 @@ deliberately plain, each with a reason an engineer can act on:
 
 * too short: fewer than ``MIN_SAMPLES`` usable samples;
 * PV constant: the measurement never moves (a frozen transmitter, a dead
-  historian tag, a value like 3.5e-44), so nothing in it can show a valve;
+  historian tag, a zero flow, or 3.5e-44: a whole number's bits read as a
+  float by the export), so nothing in it can show a valve;
 * no excitation: OP never moves beyond its own resolution, so the valve was
   never asked to move (manual mode, saturated output);
 * under-sampled: the loop's own cycle is shorter than ``MIN_PERIOD_SAMPLES``
@@ -42,8 +43,10 @@ MIN_DISTINCT = 5
 RELATIVE_FLOOR = 1e-9
 # OP moving less than this (% of span, peak to peak) never asked the valve to move.
 MIN_OP_TRAVEL = 0.05
-# |PV| at or below this throughout reads as zero (a dead export's 3.5e-44 too).
+# |PV| at or below this throughout reads as zero.
 ZERO = 1e-12
+# Below this a 32-bit float is subnormal: no transmitter reads there.
+FLOAT32_TINY = float(np.finfo(np.float32).tiny)
 # Lag-1 autocorrelation below this means a cycle near the Nyquist frequency.
 ALTERNATING = -0.35
 # Not in control: |median(SP - PV)| at least this many times PV's range, the
@@ -88,14 +91,27 @@ def _constant_pv_reason(op: np.ndarray, pv: np.ndarray) -> str:
     k = int(np.unique(pv).size)
     values = 'one value' if k == 1 else f'{k} distinct values'
     low, high = float(np.min(op)), float(np.max(op))
-    if float(np.max(np.abs(pv))) <= ZERO and high - low >= MIN_OP_TRAVEL:
-        # A flow of exactly zero under a moving OP: nothing passed the valve,
-        # which a shut valve and a transmitter's low-flow cut-off both give.
+    top = float(np.max(np.abs(pv)))
+    if k == 1 and 0.0 < top < FLOAT32_TINY:
+        # A real measurement never sits on one subnormal: these are the bits of
+        # a whole number (25 for 3.5e-44) read as a 32-bit float.
+        bits = int(np.array(pv[0], dtype=np.float32).view(np.int32))
+        return (f'PV is {float(pv[0]):.4g} in every sample, the bits of the whole number '
+                f'{bits} read as a 32-bit float: the export most likely read this tag with '
+                f'the wrong data type; check the historian export. The record shows '
+                f'nothing of the valve')
+    fraction = 0.0 <= low and high <= 1.0
+    if top <= ZERO and (high - low >= MIN_OP_TRAVEL or (fraction and high > low)):
+        # Nothing passed, or the range bottomed out: neither shows the valve move.
+        unit = '' if fraction else ' %'
+        hint = (' (OP stays within 0-1: if it is a fraction of the stroke, give it in %)'
+                if fraction else '')
         return (f'PV reads zero in every sample while OP moved between {low:.3g} and '
-                f'{high:.3g} %: for a flow, nothing passed the valve (shut: stuck, or not '
-                f'yet off its seat at this OP) or the transmitter is below its low-flow '
-                f'cut-off; otherwise a dead transmitter or historian tag. The record shows '
-                f'nothing of how the valve moves; a valve travel test would')
+                f'{high:.3g}{unit}{hint}: for a flow, nothing passed (the valve shut, stuck '
+                f'or not off its seat at this OP, or the line blocked in upstream) or the '
+                f'transmitter is below its low-flow cut-off; a level or pressure at exactly '
+                f'zero is more likely the bottom of its measuring range. The record shows '
+                f'nothing of how the valve moves')
     return (f'PV is constant ({values}, range {float(np.ptp(pv)):.3g}): the measurement '
             f'shows nothing of the valve; check the transmitter or the historian tag')
 

@@ -1,0 +1,35 @@
+"""The batch summary's tally: why each `cannot tell` got no answer, from any row it is given."""
+
+from stiction_ros.app.batch import _why_not, Batch
+from stiction_ros.cli.analyze import print_many
+
+
+def _row(detected, why=None):
+    row = {'input': 'r.txt', 'ok': True, 'detected': detected,
+           'summary': 'TAG: cannot tell' if detected is None else 'TAG: stiction'}
+    if why is not None:
+        row['why_not'] = why
+    return row
+
+
+def test_why_not_names_balanced_evidence_or_the_check_failed():
+    assert _why_not({'detector': {'balanced': True, 'judgeable': {'ok': True, 'code': ''}},
+                     'reason': 'the evidence is balanced'}) == 'evidence balanced'
+    assert _why_not({'detector': {'judgeable': {'ok': False, 'code': 'not_in_control'}},
+                     'reason': 'not in control: ...'}) == 'not in control'
+    # Nothing named by the detector: the reason's first words, not a bare "other".
+    assert _why_not({'reason': 'too few fits: the valve position is missing'}) == \
+        'too few fits'
+    assert _why_not({}) == 'no reason given'
+
+
+def test_the_tally_breaks_cannot_tell_down_and_survives_rows_without_a_reason(capsys):
+    rows = [_row(True), _row(None, 'evidence balanced'), _row(None, 'too short'),
+            _row(None, 'evidence balanced'), _row(None)]
+    batch = Batch('d', rows, 1.0, '1 process(es)')
+    assert batch.tally() == {'stiction': 1, 'cannot tell': 4}
+    assert batch.why_not() == {'evidence balanced': 2, 'too short': 1, 'reason not given': 1}
+    assert print_many(batch) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert ('4 cannot tell (2 evidence balanced, 1 reason not given, 1 too short), '
+            '1 stiction') in last
