@@ -119,7 +119,7 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
 
 
 def _why_not(st: dict) -> str:
-    """Return in two or three words why a recording got no answer (the tally's breakdown)."""
+    """Return in a few words why a recording got no answer (the tally's breakdown)."""
     det = st.get('detector') or {}
     if det.get('balanced'):
         return 'evidence balanced'

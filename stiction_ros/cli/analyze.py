@@ -151,7 +151,7 @@ def print_many(batch: Batch) -> int:
     failed, where = batch.failed, batch.workers
     rows, seconds = batch.rows, batch.seconds
     why = ', '.join(f'{n} {w}' for w, n in sorted(batch.why_not().items()))
-    # A balanced case wants a travel test, an unjudgeable one another record.
+    # A balanced case wants a travel test, an unjudgeable one what its reason names.
     words = [f'{n} {w}' + (f' ({why})' if w == VERDICT_WORDS[None] and why else '')
              for w, n in sorted(batch.tally().items())]
     print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
