@@ -76,7 +76,7 @@ def test_numpy_loaded_first_is_said_and_keys_the_cache_apart():
 def test_numpys_own_processor_choice_keys_the_cache_apart():
     # NumPy's exp and log for AVX2 alone, as on a host without AVX-512: other
     # figures in their last bits, so another key for the cache.
-    assert run(KEY, NPY_DISABLE_CPU_FEATURES='X86_V4 AVX512_ICL') != run(KEY)
+    assert run(KEY, **{_blas.NUMPY_PIN: ' '.join(_blas.NUMPY_ABOVE_AVX2)}) != run(KEY)
 
 
 def _makefile() -> str:
