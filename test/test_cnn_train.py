@@ -1,5 +1,7 @@
 """Training the detector's networks: shapes, the kept corpus, the loss it reports, the export."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -133,9 +135,14 @@ def test_the_training_command_refuses_the_detectors_own_seeds(capsys):
         assert 'overlap' in capsys.readouterr().err
 
 
-def test_the_shipped_large_network_names_the_network_it_was_trained_on_from():
-    base = cnn.load(cnn.DEFAULT_PATH.with_name('stiction_cnn_large_base.npz'))
-    large = cnn.load(cnn.DEFAULT_PATH.with_name('stiction_cnn_large.npz'))
+CANDIDATES = Path(__file__).resolve().parents[1] / 'docs' / 'candidates'
+
+
+@pytest.mark.parametrize('where', [cnn.DEFAULT_PATH.parent, CANDIDATES / 'b64'],
+                         ids=['shipped', 'candidate-b64'])
+def test_a_large_network_names_the_network_it_was_trained_on_from(where):
+    base = cnn.load(where / 'stiction_cnn_large_base.npz')
+    large = cnn.load(where / 'stiction_cnn_large.npz')
     assert large.meta['init'] == {'file': 'stiction_cnn_large_base.npz', 'sha256': base.sha256}
     assert large.meta['without_deadband_like'] is True
     from stiction_ros.analysis.detection import dataset
