@@ -13,7 +13,6 @@ plant gain absorbs the height of a slip, see the module docstring).
 """
 
 import json
-import time
 
 import numpy as np
 import pytest
@@ -236,13 +235,11 @@ def test_result_is_json_and_progress_is_reported():
     assert [c[0] for c in calls] == sorted(c[0] for c in calls)
 
 
-def test_751_samples_take_well_under_two_seconds():
+def test_a_plant_loops_length_of_751_samples_is_enough_to_size_the_band():
+    # The plant loops' length; the fit's time is in make bench-detector.
     op, pv = record(4.0, 1.0, duration=750)
-    quantify(op[:300], pv[:300], 1.0)      # compiled kernels are loaded here
-    t0 = time.perf_counter()
     r = quantify(op, pv, 1.0)
-    assert time.perf_counter() - t0 < 2.0
-    assert r.S is not None
+    assert r.S is not None and r.S_interval[0] <= 4.0 <= r.S_interval[1], (r.S, r.S_interval)
 
 
 def test_an_exact_fit_reads_as_no_evidence_not_as_a_math_error():
@@ -261,6 +258,6 @@ def test_an_exact_fit_reads_as_no_evidence_not_as_a_math_error():
     span = float(np.ptp(rec['op']))
     d = quantify(rec['op'], rec['pv'], sc.sample_time, integrating=sc.integrating,
                  max_delay=10, resolution=span / 40).details
-    assert 0.0 <= d['jump_likelihood_ratio'] < 1e300
-    if d['deadband_residual_variance'] <= 0.0:
-        assert d['jump_likelihood_ratio'] == 0.0
+    # A frozen PV is what a deadband (J = 0) reproduces exactly: nothing left to earn.
+    assert d['deadband_residual_variance'] <= 1e-12 * float(np.var(rec['pv']))
+    assert d['jump_likelihood_ratio'] == 0.0
