@@ -3,13 +3,15 @@ Score the stiction verdict on held-out data and write docs/ACCURACY.md (``make a
 
     python -m stiction_ros.cli.accuracy [DATA_DIR] [--reports out/plant_loops]
                                         [--markdown docs/ACCURACY.md] [--sim-test N]
+                                        [--json docs/accuracy.json] [--render-only]
 
 DATA_DIR holds ``stiction/`` and ``no_stiction/`` folders of recordings (by
 default the shared plant loops).  Every file is analysed by the same code as
 ``stiction-analyze`` and its JSON and HTML reports are written under
 ``--reports``.  Then the simulated test set (seeds never used for training
 or tuning) is drawn and scored.  See ``stiction_ros.study.accuracy_study``
-for the protocol.
+for the protocol.  ``--render-only`` scores nothing: it rewrites the page
+from the JSON a previous run wrote (after a change to how the page reads).
 """
 
 import argparse
@@ -120,7 +122,11 @@ def main(argv=None):
     p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
     p.add_argument('--cache', default='out/detector_cache',
                    help='folder of cached simulated features (shared with make detector)')
+    p.add_argument('--render-only', action='store_true',
+                   help='score nothing: rewrite --markdown from the study in --json')
     args = p.parse_args(argv)
+    if args.render_only:
+        return _render(args.json, args.markdown)
     if not Path(args.data).is_dir():
         print(f'stiction-accuracy: error: {args.data} is not a folder', file=sys.stderr)
         return 2
@@ -181,6 +187,19 @@ def main(argv=None):
     Path(args.json).write_text(json.dumps(study, indent=2, default=_plain) + '\n',
                                encoding='utf-8')
     print(Path(args.markdown).read_text(encoding='utf-8'))
+    return 0
+
+
+def _render(json_path: str, markdown_path: str) -> int:
+    try:
+        study = json.loads(Path(json_path).read_text(encoding='utf-8'))
+        page = markdown(study)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        print(f'stiction-accuracy: error: cannot render {json_path}: '
+              f'{type(e).__name__}: {e}', file=sys.stderr)
+        return 2
+    Path(markdown_path).write_text(page, encoding='utf-8')
+    print(f'wrote {markdown_path} from {json_path}')
     return 0
 
 

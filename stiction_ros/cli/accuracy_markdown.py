@@ -3,7 +3,9 @@
 import math
 
 from stiction_ros.analysis.detection import probability_text
-from stiction_ros.study.accuracy_study import BANDED, FORCED, SHIPPED
+from stiction_ros.study.accuracy import balanced_accuracy, confusion
+from stiction_ros.study.accuracy_study import band_answer, BANDED, FORCED, SHIPPED, THRESHOLD
+from stiction_ros.study.intervals import class_interval, DRAWS, LEVEL, SEED, tag_interval
 
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
@@ -92,6 +94,38 @@ def _by_tag(chosen: dict | None) -> list:
     return [f'Probability thresholds the folds chose on the other tags: {folds}.', '']
 
 
+def _span(lo: float, hi: float, digits: int = 2) -> str:
+    return f'{100 * LEVEL:.0f} % interval {_f(lo, digits)}-{_f(hi, digits)}'
+
+
+def _plant_intervals(study: dict) -> list:
+    # From the per-file answers, so the page can be rebuilt from the JSON alone.
+    cases = study['cases']
+    y = [bool(c['label']) for c in cases]
+    groups = [c['group'] for c in cases]
+    p = [c['probability'] for c in cases]
+    calls = {f'learned detector, {FORCED}': [v is not None and v >= THRESHOLD for v in p],
+             f'learned detector, {BANDED}': [
+                 v is not None and band_answer(v) is True for v in p],
+             'old rule': [bool(c['old_rule']) for c in cases]}
+    parts = [f'{name}: {_f(balanced_accuracy(confusion(y, called)))} '
+             f'({_span(*tag_interval(y, called, groups))})' for name, called in calls.items()]
+    n_sticky = len({g for g, lab in zip(groups, y) if lab})
+    return [f'How far these figures could move on other valves ({DRAWS} bootstrap draws of '
+            f'whole tags, seed {SEED}: the records of one valve move together, and the '
+            f'sticky records come from {n_sticky} valves): ' + '; '.join(parts) + '.', '']
+
+
+def _sim_intervals(study: dict) -> list:
+    parts = [f'{name}: {_f(s["balanced_accuracy"], 3)} '
+             f'({_span(*class_interval(s), digits=3)})'
+             for name, s in study['sim'].items() if s is not None and name.startswith(
+                 ('learned detector', 'old rule'))]
+    return [f'How far they could move on another draw of as many records ({DRAWS} bootstrap '
+            f'draws, each class resampled on its own, seed {SEED}): ' + '; '.join(parts)
+            + '.', '']
+
+
 def markdown(study: dict) -> str:
     """Return the whole page."""
     plant = study['plant']
@@ -140,6 +174,7 @@ def markdown(study: dict) -> str:
         '',
         *table(plant),
         '',
+        *_plant_intervals(study),
         *_by_tag(study.get('plant_threshold_by_tag')),
         f'Healthy valves flagged on most of their records: {len(flagged)} of '
         f'{len(healthy_tags)}' + (f' ({", ".join(t[0] for t in flagged)})' if flagged else '')
@@ -159,6 +194,7 @@ def markdown(study: dict) -> str:
         '',
         *table(study['sim']),
         '',
+        *_sim_intervals(study),
         *_deadband_like(study),
         'Share of records called stiction, by valve or look-alike:',
         '',
