@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from stiction_ros.cli.accuracy import main
-from stiction_ros.cli.accuracy_markdown import markdown
+from stiction_ros.cli.accuracy_markdown import markdown, plant_calls
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
-from stiction_ros.study.accuracy_study import band_answer, BANDED, FORCED, THRESHOLD
-from stiction_ros.study.intervals import class_interval, tag_interval
+from stiction_ros.study.intervals import class_interval, exact_interval, tag_interval
 
 DOCS = Path(__file__).resolve().parents[1] / 'docs'
 
@@ -58,10 +57,24 @@ def test_the_class_interval_narrows_as_the_square_root_of_the_records():
     assert 1.6 < (hi - lo) / (hi4 - lo4) < 2.5
 
 
-def test_a_perfect_or_one_class_record_set_has_no_spread_or_no_figure():
+def test_resampling_cannot_doubt_a_perfect_class_and_one_class_has_no_figure():
+    # The known limit the page states: no miss, no spread.
     assert class_interval({'tp': 10, 'fn': 0, 'fp': 0, 'tn': 7}) == (1.0, 1.0)
     assert all(math.isnan(v) for v in class_interval({'tp': 3, 'fn': 1, 'fp': 0, 'tn': 0}))
     assert all(math.isnan(v) for v in tag_interval([True, True], [True, False], ['a', 'b']))
+
+
+def test_the_exact_interval_of_a_share_without_a_miss():
+    # k = n: the lower bound solves p**n = (1 - level) / 2.
+    lo, hi = exact_interval(15, 15)
+    assert hi == 1.0 and lo == pytest.approx(0.025 ** (1 / 15))
+    # A share and its complement mirror each other.
+    lo, hi = exact_interval(5, 17)
+    lo_c, hi_c = exact_interval(12, 17)
+    assert lo == pytest.approx(1 - hi_c) and hi == pytest.approx(1 - lo_c)
+    assert lo < 5 / 17 < hi
+    with pytest.raises(ValueError):
+        exact_interval(3, 2)
 
 
 def _plant_like():
@@ -105,26 +118,30 @@ def test_the_accuracy_page_is_the_rendering_of_its_json(tmp_path):
 
 def test_the_plant_intervals_are_about_the_rows_of_the_table():
     # The page recomputes the plant calls from the per-file answers; they must
-    # be the calls the table scored.
+    # be the calls the table scored, count for count.
     study = json.loads((DOCS / 'accuracy.json').read_text(encoding='utf-8'))
-    cases = study['cases']
-    y = [c['label'] for c in cases]
-    p = [c['probability'] for c in cases]
-    rows = {name.split(',')[-1].split(' (')[0].strip(): row
-            for name, row in study['plant'].items() if name.startswith(('learned', '**learned'))}
-    forced = confusion(y, [v is not None and v >= THRESHOLD for v in p])
-    banded = confusion(y, [v is not None and band_answer(v) is True for v in p])
-    assert balanced_accuracy(forced) == rows[FORCED]['balanced_accuracy']
-    assert balanced_accuracy(banded) == rows[BANDED]['balanced_accuracy']
-    old = study['plant']['old rule (signature vote, published weights)']
-    assert balanced_accuracy(confusion(y, [bool(c['old_rule']) for c in cases])) == \
-        old['balanced_accuracy']
+    y = [c['label'] for c in study['cases']]
+    calls = plant_calls(study)
+    assert len(calls) == 3
+    for key, called in calls.items():
+        row = study['plant'][key]
+        assert confusion(y, called) == {k: row[k] for k in ('tp', 'fn', 'fp', 'tn')}, key
 
 
-def test_an_unreadable_study_is_a_clear_error(tmp_path, capsys):
+@pytest.mark.parametrize('text', ['{"plant": ', '[]', '{"plant": {}, "sim": {}, "cases": []}',
+                                  '{"plant": {"a": 1}, "sim": [], "cases": []}',
+                                  '{"plant": {"a": 1}, "sim": {}, "cases": [3]}'])
+def test_an_unreadable_study_is_a_clear_error_and_leaves_the_page(tmp_path, capsys, text):
     bad = tmp_path / 'bad.json'
-    bad.write_text('{"plant": ', encoding='utf-8')
-    assert main(['--render-only', '--json', str(bad),
-                 '--markdown', str(tmp_path / 'x.md')]) == 2
+    bad.write_text(text, encoding='utf-8')
+    page = tmp_path / 'x.md'
+    page.write_text('the page before', encoding='utf-8')
+    assert main(['--render-only', '--json', str(bad), '--markdown', str(page)]) == 2
     assert 'cannot render' in capsys.readouterr().err
-    assert not (tmp_path / 'x.md').exists()
+    assert page.read_text(encoding='utf-8') == 'the page before'
+
+
+def test_a_page_that_cannot_be_written_is_a_clear_error(tmp_path, capsys):
+    assert main(['--render-only', '--json', str(DOCS / 'accuracy.json'),
+                 '--markdown', str(tmp_path / 'missing' / 'x.md')]) == 2
+    assert 'cannot write' in capsys.readouterr().err

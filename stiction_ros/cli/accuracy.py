@@ -123,7 +123,8 @@ def main(argv=None):
     p.add_argument('--cache', default='out/detector_cache',
                    help='folder of cached simulated features (shared with make detector)')
     p.add_argument('--render-only', action='store_true',
-                   help='score nothing: rewrite --markdown from the study in --json')
+                   help='score nothing: rewrite --markdown from the study in --json '
+                        '(the data and scoring options are then ignored)')
     args = p.parse_args(argv)
     if args.render_only:
         return _render(args.json, args.markdown)
@@ -193,12 +194,24 @@ def main(argv=None):
 def _render(json_path: str, markdown_path: str) -> int:
     try:
         study = json.loads(Path(json_path).read_text(encoding='utf-8'))
+        if not (isinstance(study, dict) and isinstance(study.get('plant'), dict)
+                and study['plant'] and isinstance(study.get('sim'), dict)
+                and isinstance(study.get('cases'), list)):
+            raise ValueError('not a study written by make accuracy (plant, sim, cases)')
         page = markdown(study)
-    except (OSError, ValueError, KeyError, TypeError) as e:
+    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
         print(f'stiction-accuracy: error: cannot render {json_path}: '
               f'{type(e).__name__}: {e}', file=sys.stderr)
         return 2
-    Path(markdown_path).write_text(page, encoding='utf-8')
+    out = Path(markdown_path)
+    # Whole or not at all: the page is replaced only once written.
+    tmp = out.with_name(out.name + '.tmp')
+    try:
+        tmp.write_text(page, encoding='utf-8')
+        tmp.replace(out)
+    except OSError as e:
+        print(f'stiction-accuracy: error: cannot write {markdown_path}: {e}', file=sys.stderr)
+        return 2
     print(f'wrote {markdown_path} from {json_path}')
     return 0
 

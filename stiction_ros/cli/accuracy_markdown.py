@@ -5,7 +5,8 @@ import math
 from stiction_ros.analysis.detection import probability_text
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.accuracy_study import band_answer, BANDED, FORCED, SHIPPED, THRESHOLD
-from stiction_ros.study.intervals import class_interval, DRAWS, LEVEL, SEED, tag_interval
+from stiction_ros.study.intervals import class_interval, DRAWS, exact_interval, LEVEL, SEED, \
+    tag_draws, tag_interval
 
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
@@ -98,22 +99,53 @@ def _span(lo: float, hi: float, digits: int = 2) -> str:
     return f'{100 * LEVEL:.0f} % interval {_f(lo, digits)}-{_f(hi, digits)}'
 
 
+def plant_calls(study: dict) -> dict:
+    """
+    Return {plant table row: per-file calls} for the rows the page gives intervals.
+
+    Recomputed from the per-file answers in ``study['cases']`` (so the page
+    can be rebuilt from the JSON alone); a refusal is not a call.
+    """
+    cases = study['cases']
+    p = [c['probability'] for c in cases]
+    out = {}
+    for key in study['plant']:
+        if FORCED in key and 'trained on simulation only' in key:
+            out[key] = [v is not None and v >= THRESHOLD for v in p]
+        elif key.endswith(BANDED):
+            out[key] = [v is not None and band_answer(v) is True for v in p]
+        elif key == 'old rule (signature vote, published weights)':
+            out[key] = [bool(c['old_rule']) for c in cases]
+    return out
+
+
 def _plant_intervals(study: dict) -> list:
-    # From the per-file answers, so the page can be rebuilt from the JSON alone.
     cases = study['cases']
     y = [bool(c['label']) for c in cases]
     groups = [c['group'] for c in cases]
-    p = [c['probability'] for c in cases]
-    calls = {f'learned detector, {FORCED}': [v is not None and v >= THRESHOLD for v in p],
-             f'learned detector, {BANDED}': [
-                 v is not None and band_answer(v) is True for v in p],
-             'old rule': [bool(c['old_rule']) for c in cases]}
-    parts = [f'{name}: {_f(balanced_accuracy(confusion(y, called)))} '
-             f'({_span(*tag_interval(y, called, groups))})' for name, called in calls.items()]
+    parts, no_false_alarm = [], True
+    for key, called in plant_calls(study).items():
+        values = tag_draws(y, called, groups)
+        lo, hi = tag_interval(y, called, groups)
+        full = ' (the full range of the draws)' if (lo, hi) == (values.min(), values.max()) \
+            else ''
+        parts.append(f'{key.replace("**", "")}: '
+                     f'{_f(balanced_accuracy(confusion(y, called)))}, {_span(lo, hi)}{full}')
+        no_false_alarm &= not any(c and not lab for c, lab in zip(called, y))
     n_sticky = len({g for g, lab in zip(groups, y) if lab})
-    return [f'How far these figures could move on other valves ({DRAWS} bootstrap draws of '
-            f'whole tags, seed {SEED}: the records of one valve move together, and the '
-            f'sticky records come from {n_sticky} valves): ' + '; '.join(parts) + '.', '']
+    healthy = [t for t in study['plant_tags'] if not t[1]]
+    left_alone = sum(1 for t in healthy if not t[3] > t[2] / 2)
+    lo, hi = exact_interval(left_alone, len(healthy)) if healthy else (float('nan'),) * 2
+    return [f'How much these figures say about other valves: whole valve tags resampled '
+            f'({DRAWS} draws, seed {SEED}; a draw without a sticky valve is drawn again), '
+            f'since the records of one valve move together. ' + '; '.join(parts) + '. '
+            f'The sticky records come from {n_sticky} valves'
+            + (', and none of these rows flags a healthy record, so resampling shows no '
+               'spread on the healthy side' if no_false_alarm else '')
+            + f'. Healthy valves not flagged on most of their records: {left_alone} of '
+            f'{len(healthy)}, which puts the share of healthy valves left alone at '
+            f'{_f(lo)}-{_f(hi)} (exact, Clopper-Pearson, {100 * LEVEL:.0f} %). A figure '
+            'anywhere inside these intervals is consistent with these loops.', '']
 
 
 def _sim_intervals(study: dict) -> list:
@@ -122,7 +154,8 @@ def _sim_intervals(study: dict) -> list:
              for name, s in study['sim'].items() if s is not None and name.startswith(
                  ('learned detector', 'old rule'))]
     return [f'How far they could move on another draw of as many records ({DRAWS} bootstrap '
-            f'draws, each class resampled on its own, seed {SEED}): ' + '; '.join(parts)
+            f'draws, each class resampled on its own, seed {SEED}; a class scored without '
+            'a miss would show no spread): ' + '; '.join(parts)
             + '.', '']
 
 
