@@ -5,8 +5,8 @@ import math
 from stiction_ros.analysis.detection import probability_text
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.accuracy_study import band_answer, BANDED, FORCED, SHIPPED, THRESHOLD
-from stiction_ros.study.intervals import class_interval, DRAWS, exact_interval, LEVEL, SEED, \
-    tag_draws, tag_interval
+from stiction_ros.study.intervals import class_interval, DRAWS, exact_interval, LEVEL, \
+    percentile_interval, SEED, tag_draws
 
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
@@ -119,23 +119,22 @@ def plant_calls(study: dict) -> dict:
     return out
 
 
-def _plant_intervals(study: dict) -> list:
+def _plant_intervals(study: dict, healthy: int, flagged: int) -> list:
     cases = study['cases']
     y = [bool(c['label']) for c in cases]
     groups = [c['group'] for c in cases]
     parts, no_false_alarm = [], True
     for key, called in plant_calls(study).items():
         values = tag_draws(y, called, groups)
-        lo, hi = tag_interval(y, called, groups)
+        lo, hi = percentile_interval(values)
         full = ' (the full range of the draws)' if (lo, hi) == (values.min(), values.max()) \
             else ''
         parts.append(f'{key.replace("**", "")}: '
                      f'{_f(balanced_accuracy(confusion(y, called)))}, {_span(lo, hi)}{full}')
         no_false_alarm &= not any(c and not lab for c, lab in zip(called, y))
     n_sticky = len({g for g, lab in zip(groups, y) if lab})
-    healthy = [t for t in study['plant_tags'] if not t[1]]
-    left_alone = sum(1 for t in healthy if not t[3] > t[2] / 2)
-    lo, hi = exact_interval(left_alone, len(healthy)) if healthy else (float('nan'),) * 2
+    left_alone = healthy - flagged
+    lo, hi = exact_interval(left_alone, healthy) if healthy else (float('nan'),) * 2
     return [f'How much these figures say about other valves: whole valve tags resampled '
             f'({DRAWS} draws, seed {SEED}; a draw without a sticky valve is drawn again), '
             f'since the records of one valve move together. ' + '; '.join(parts) + '. '
@@ -143,7 +142,7 @@ def _plant_intervals(study: dict) -> list:
             + (', and none of these rows flags a healthy record, so resampling shows no '
                'spread on the healthy side' if no_false_alarm else '')
             + f'. Healthy valves not flagged on most of their records: {left_alone} of '
-            f'{len(healthy)}, which puts the share of healthy valves left alone at '
+            f'{healthy}, which puts the share of healthy valves left alone at '
             f'{_f(lo)}-{_f(hi)} (exact, Clopper-Pearson, {100 * LEVEL:.0f} %). A figure '
             'anywhere inside these intervals is consistent with these loops.', '']
 
@@ -207,7 +206,7 @@ def markdown(study: dict) -> str:
         '',
         *table(plant),
         '',
-        *_plant_intervals(study),
+        *_plant_intervals(study, len(healthy_tags), len(flagged)),
         *_by_tag(study.get('plant_threshold_by_tag')),
         f'Healthy valves flagged on most of their records: {len(flagged)} of '
         f'{len(healthy_tags)}' + (f' ({", ".join(t[0] for t in flagged)})' if flagged else '')

@@ -53,7 +53,7 @@ def class_interval(c: dict, draws: int = DRAWS, seed: int = SEED,
     rng = np.random.default_rng(seed)
     sens = rng.binomial(n_pos, c['tp'] / n_pos, draws) / n_pos
     spec = rng.binomial(n_neg, c['tn'] / n_neg, draws) / n_neg
-    return _percentiles(0.5 * (sens + spec), level)
+    return percentile_interval(0.5 * (sens + spec), level)
 
 
 def tag_interval(labels: Sequence[bool], called: Sequence[bool], groups: Sequence[str],
@@ -81,7 +81,7 @@ def tag_interval(labels: Sequence[bool], called: Sequence[bool], groups: Sequenc
     values = tag_draws(labels, called, groups, draws, seed)
     if values.size == 0:
         return float('nan'), float('nan')
-    return _percentiles(values, level)
+    return percentile_interval(values, level)
 
 
 def tag_draws(labels: Sequence[bool], called: Sequence[bool], groups: Sequence[str],
@@ -127,7 +127,8 @@ def exact_interval(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
     return lo, hi
 
 
-def _percentiles(values: np.ndarray, level: float) -> tuple[float, float]:
+def percentile_interval(values: np.ndarray, level: float = LEVEL) -> tuple[float, float]:
+    """Return the central ``level`` percentile interval of bootstrap ``values``."""
     tail = 100.0 * (1.0 - level) / 2.0
     lo, hi = np.percentile(values, [tail, 100.0 - tail])
     return float(lo), float(hi)
