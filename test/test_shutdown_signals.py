@@ -22,6 +22,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 
 from mcap.reader import make_reader
 import numpy as np
@@ -31,6 +32,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from std_msgs.msg import Float64
 from stiction_ros.bag.reader import read_bag
+from stiction_ros.nodes.exit_timer import exit_after
 from stiction_ros.nodes.run import BACKSTOP_S
 from stiction_ros.nodes.sampled import DATA_QOS
 from stiction_ros.resources import config_file
@@ -132,7 +134,7 @@ def read_three_ways(bag):
 def check_complete(stamps, sent, ns, stop_ns):
     """Check that the bag holds every message sent before the stop; return what it measured."""
     report = {}
-    last = {}
+    after = {}
     for t in TOPICS:
         bag = np.array(stamps[f'{ns}/{t}'])
         out = np.array(sent.stamps[t])
@@ -155,12 +157,18 @@ def check_complete(stamps, sent, ns, stop_ns):
         # test's subscriber got no message of that sample either.
         gaps = np.flatnonzero(np.diff(k) > 1)
         assert all(not np.any((out > bag[i]) & (out < bag[i + 1])) for i in gaps), t
-        last[t] = int(k[-1])
+        after[t] = int(np.sum(out >= stop_ns))
         report[t] = {'recorded': len(bag), 'sent_before_stop': int(np.sum(out < stop_ns)),
+                     'sent_after_stop': after[t],
                      'last_ms_before_stop': round((stop_ns - int(bag[-1])) / 1e6, 1),
                      'samples_skipped_by_node': int(k[-1] - k[0] + 1 - len(np.unique(k)))}
-    # They all stopped within a sample or two of one another.
-    assert max(last.values()) - min(last.values()) <= 2, last
+    # They all stopped within a sample or two of one another, and within half a second of
+    # the signal: counted in the samples each topic had after it, as the test's subscriber
+    # saw them (the recorder stops at the signal, so the bag cannot show a node running on).
+    # Not from the bag's last send stamps: a write that stalls at the stop (330 ms once,
+    # between one sample's sp and op) stamps that sample's last message late.
+    assert max(after.values()) - min(after.values()) <= 2, after
+    assert max(after.values()) <= 0.5 / TS, after
     return report
 
 
@@ -226,9 +234,19 @@ def run_group(tmp_path, probe, ns, stop, tty=False):
         if term is not None:
             term.close()
     codes = json.loads(result.read_text())
+    # A string, whole: pytest shortens the repr of anything else, and the log of the node
+    # that failed is the one clue to why (a CI run once showed the valve's end only).
     logs = term.output.decode(errors='replace') if tty else '\n'.join(
-        (tmp_path / f'{n}.log').read_text() for n in NODES)
-    assert codes == dict.fromkeys(NODES, 0), (codes, logs)
+        f'--- {n} (exit {codes.get(n)}):\n' + (tmp_path / f'{n}.log').read_text()
+        for n in sorted(NODES, key=lambda n: codes.get(n) == 0))
+    assert codes == dict.fromkeys(NODES, 0), f'exit codes {codes}\n{logs}'
+    outputs = {'the terminal': logs} if tty else {
+        n: (tmp_path / f'{n}.log').read_text() for n in NODES}
+    for where, text in outputs.items():
+        if 'DDS teardown still running' in text or 'Timeout (' in text:
+            # A stalled teardown ends with the run's status, so the test passes; its stacks
+            # are the clue to the stall's cause, and CI's summary keeps the warnings.
+            warnings.warn(f'{ns}: a teardown stalled ({where}):\n{text}', stacklevel=1)
     report = check_complete(read_three_ways(bag), sent, ns, stop_ns)
     print(f'{ns}: stopped in {stopped_in:.2f} s, exit codes {codes}, {report}')
     return report
@@ -415,17 +433,29 @@ def test_a_teardown_that_stalls_ends_with_the_runs_status_and_the_stacks(status)
     assert 'line 4 in <module>' in done.stderr     # the main thread's stack, in the sleep
 
 
-def test_a_teardown_that_stalls_holding_the_gil_still_ends_with_the_stacks():
+@pytest.mark.parametrize('status', [0, 3])
+def test_a_teardown_that_stalls_holding_the_gil_ends_with_the_stacks_and_the_runs_status(
+        status):
     # A regular expression that backtracks for ever holds the GIL, as a stall inside
-    # C code can: the Python watchdog never runs, faulthandler's thread does.
+    # C code can (rclpy holds it in every DDS call but a wait): the Python watchdog never
+    # runs; faulthandler's thread prints the stacks and a kernel timer ends the process.
+    # The status is the run's: with faulthandler's own exit a controller whose bag-side
+    # work was done failed CI with status 1, its stacks cut from the report.
     code = ('import re\nfrom stiction_ros.nodes.run import end_teardown_within\n'
-            'end_teardown_within(0.3, "plant", [0])\nre.match(r"(a+)+$", "a" * 64 + "b")\n')
+            f'end_teardown_within(0.3, "plant", [{status}])\n'
+            're.match(r"(a+)+$", "a" * 64 + "b")\n')
     started = time.monotonic()
     done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=20)
-    assert done.returncode == 1, done.stderr
+    assert done.returncode == status, done.stderr
     assert time.monotonic() - started >= 0.3 + BACKSTOP_S
     assert 'line 4 in <module>' in done.stderr     # the stalled main thread's stack
+    assert 'DDS teardown still running' not in done.stderr     # the watchdog never ran
+
+
+def test_the_exit_timer_refuses_a_status_out_of_range():
+    with pytest.raises(ValueError, match='256'):
+        exit_after(1.0, 256)
 
 
 def test_a_teardown_that_ends_in_time_keeps_the_process():

@@ -21,8 +21,10 @@ its summary printed, still running 30 s after the stop.  A watchdog
 (:func:`end_teardown_within`) then ends the process with the run's status
 after ``TEARDOWN_S``, with every thread's stack in the log, before a
 launcher's SIGKILL would take the status away.  A stall that holds the GIL
-starves that watchdog; faulthandler then ends the process ``BACKSTOP_S``
-later with status 1 and the stacks, through interpreter exit too.
+(rclpy holds it in every call into DDS but a wait) starves that watchdog;
+faulthandler then prints the stacks ``BACKSTOP_S`` later, and a kernel timer
+(:mod:`stiction_ros.nodes.exit_timer`) ends the process with the run's status,
+through interpreter exit too.
 
 A node that cannot start prints one line saying why and exits 2.
 
@@ -46,6 +48,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers
 from rclpy.signals import SignalHandlerOptions, uninstall_signal_handlers
 from stiction_ros.models.base import ModelError
+from stiction_ros.nodes.exit_timer import exit_after
 from stiction_ros.nodes.sampled import StartupError
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -53,9 +56,12 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # ignores), and its SIGKILL 5 s after that; a teardown takes well under 1 s.
 TEARDOWN_S = 3.0
 # The watchdog is a Python thread, which a teardown stalled inside C code with the
-# GIL held starves; faulthandler's own thread needs no GIL.  It ends the process
-# this much later, with status 1 and every stack, through interpreter exit too.
+# GIL held starves; faulthandler's thread and a kernel timer need no GIL.  They end
+# the process this much later, with every stack and the run's status, through
+# interpreter exit too.
 BACKSTOP_S = 4.0
+# Between faulthandler's stacks and the backstop's exit: time to write them out.
+STACKS_S = 0.25
 
 
 class StopRequest:
@@ -188,13 +194,18 @@ def end_teardown_within(seconds: float, prog: str, status: list) -> threading.Ti
 
     It prints one line and every thread's stack to stderr first.  The caller
     cancels it when the teardown is done.  A teardown that stalls while
-    holding the GIL holds this timer back as well, so faulthandler is armed
-    to end the process ``BACKSTOP_S`` later (status 1, every stack).  That
-    one stays armed through interpreter exit, where a stall would otherwise
-    wait for a launcher's SIGKILL: call this only in a process that is
-    about to end.
+    holding the GIL holds this timer back as well, so faulthandler prints
+    every stack ``BACKSTOP_S`` later and a kernel timer ends the process
+    with ``status[0]`` (as it is now) ``STACKS_S`` after that; faulthandler
+    ends it itself, with status 1, where there is no such timer.  Both stay
+    armed through interpreter exit, where a stall would otherwise wait for a
+    launcher's SIGKILL: call this only in a process that is about to end.
     """
-    faulthandler.dump_traceback_later(seconds + BACKSTOP_S, exit=True, file=sys.stderr)
+    backstop = seconds + BACKSTOP_S
+    # The stacks at the backstop, then the exit with the run's status a moment later; where
+    # the C library has no such timer, faulthandler ends the process itself (status 1).
+    hard = exit_after(backstop + STACKS_S, status[0])
+    faulthandler.dump_traceback_later(backstop, exit=not hard, file=sys.stderr)
 
     def _end():
         print(f'{prog}: DDS teardown still running {seconds:g} s after the node closed; '
