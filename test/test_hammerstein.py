@@ -254,7 +254,7 @@ def test_an_exact_fit_reads_as_no_evidence_not_as_a_math_error():
     # froze for 74 of its 800 samples; the deadband fit (J = 0), at the top of the
     # S range where the valve moves once, is nearly singular: its sum of squares
     # off the normal equations came out at 0 (least squares on the same regressors:
-    # 58.5 of 3 014).
+    # 58.5 of 3 014); such cells are now scored again by least squares (next test).
     from stiction_ros.sim.corpus import draw_scenario, simulate
     sc = draw_scenario(3_101_918)
     rec = simulate(sc)
@@ -264,3 +264,31 @@ def test_an_exact_fit_reads_as_no_evidence_not_as_a_math_error():
     # Whether its sum of squares lands on 0 or a hair either side is rounding, so
     # only what must hold either way: a finite figure, never negative or NaN.
     assert 0.0 <= d['jump_likelihood_ratio'] < 1e300
+
+
+def test_every_cell_of_a_nearly_singular_fit_is_the_least_squares_sse(monkeypatch):
+    # The record above: its deadband cells came out of the normal equations at 0-196
+    # where least squares gives 58.5 (the stuck valve's ramp nearly repeats the
+    # integrating plant's ramp regressors, and the projection cancels its digits).
+    # The kernel bounds each cell's rounding; a cell over the bound is scored again
+    # by least squares.  Every cell the search scores must now be least squares' SSE.
+    from stiction_ros.analysis.hammerstein.problem import DOUBT, HammersteinProblem
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(3_101_918)
+    rec = simulate(sc)
+    grid, checked, problems = HammersteinProblem.grid, [], []
+
+    def checking_grid(self, s_values, j_values, start, dlo=None, dhi=None):
+        sse, delay = grid(self, s_values, j_values, start, dlo, dhi)
+        problems.append(self)
+        for a, b in np.ndindex(sse.shape):
+            _, resid = self.fit(s_values[a], j_values[b], int(delay[a, b]), start)
+            checked.append(abs(sse[a, b] - float(resid @ resid)) / self.tt)
+        return sse, delay
+
+    monkeypatch.setattr(HammersteinProblem, 'grid', checking_grid)
+    span = float(np.ptp(rec['op']))
+    quantify(rec['op'], rec['pv'], sc.sample_time, integrating=sc.integrating, max_delay=10,
+             resolution=span / 40)
+    assert sum(p.rescored for p in problems) > 0      # the record still needs the fallback
+    assert len(checked) > 1000 and max(checked) <= 10 * DOUBT, max(checked)

@@ -8,7 +8,9 @@ cross products behind it, most of the detector's time, are summed lag by lag,
 each sum in a register (four regressors and two valve lags a pass), in the
 order of the rows: the bits of the row-by-row loop
 (:func:`lag_sums_reference`) in about 0.6 of its time as built ahead of
-time, 0.35 under numba's build for the processor.
+time, 0.35 under numba's build for the processor.  Each grid cell also gets
+a bound on its SSE's rounding error (``_reduction``); the caller scores the
+rare cells where it is large again by plain least squares.
 """
 
 import math
@@ -20,16 +22,30 @@ from stiction_ros.kernels.arrays import Floats, Ints
 from stiction_ros.kernels.sse import kano_output
 
 
+# The relative rounding of a reduced system's entry, in units of its column's sum of
+# squares before the projection: 64 roundings of a double, a generous count of the
+# terms that cancel into it.
+ROUNDING = 64 * 2.0 ** -52
+
 # (qv, tv, vv, sv) of (v, rows, row_seg, qy, tres, dlo, nl, nb, nseg).
 LAG_SUMS_SIGNATURE = ('Tuple((f8[:, ::1], f8[::1], f8[:, ::1], f8[:, ::1]))'
                       '(f8[::1], i8[::1], i8[::1], f8[:, ::1], f8[::1], i8, i8, i8, i8)')
 
 
 @njit(cache=True)
-def _reduction(h: Floats, g: Floats) -> float:
+def _reduction(h: Floats, g: Floats, raw: Floats) -> tuple[float, float]:
     # g' H^-1 g by Cholesky; a pivot lost to round-off marks a column that
     # repeats the others (a valve that never moves), which explains nothing.
+    # Also a bound on that sum's rounding error.  H is what is left of each
+    # column's sum of squares before the projection (``raw``) after terms of
+    # its size are subtracted, so a pivot holds about ROUNDING * raw of
+    # rounding, and the share of its column's z^2 that is noise is that over
+    # the pivot.  A valve path that the plant's own regressors nearly repeat
+    # (a stuck valve integrated into a ramp, beside the ramp regressors) can
+    # keep a pivot of pure rounding: z^2 then exceeded the whole sum of
+    # squares, an SSE of 0 where least squares gives 58.5.
     m = g.shape[0]
+    err = 0.0
     low = np.zeros((m, m))
     z = np.zeros(m)
     for i in range(m):
@@ -49,7 +65,8 @@ def _reduction(h: Floats, g: Floats) -> float:
             for k in range(i):
                 s -= low[i, k] * z[k]
             z[i] = s / low[i, i]
-    return np.sum(z * z)
+            err += z[i] * z[i] * min(1.0, ROUNDING * raw[i] / (low[i, i] * low[i, i]))
+    return np.sum(z * z), err
 
 
 @njit(cache=True, aot='f8[:](f8[::1], f8)')
@@ -202,9 +219,11 @@ def _lag_sums_block(v: Floats, rows: Ints, row_seg: Ints, qy: Floats, tres: Floa
 
 @njit(cache=True)
 def _best_delay(v: Floats, rows: Ints, row_seg: Ints, seg_rows: Floats, qy: Floats,
-                tres: Floats, tt: float, dlo: int, dhi: int, nb: int) -> tuple[float, int]:
+                tres: Floats, tt: float, dlo: int, dhi: int,
+                nb: int) -> tuple[float, int, float]:
     # Cross products of every lag of v with the projected regressors, then
-    # the SSE of each dead time from a small (nb x nb) system.
+    # the SSE of each dead time from a small (nb x nb) system, and the largest
+    # rounding bound of any dead time's SSE (_reduction).
     nl = dhi - dlo + nb
     p = qy.shape[1]
     nseg = seg_rows.shape[0]
@@ -213,9 +232,12 @@ def _best_delay(v: Floats, rows: Ints, row_seg: Ints, seg_rows: Floats, qy: Floa
     best_d = dlo
     h = np.empty((nb, nb))
     g = np.empty(nb)
+    raw = np.empty(nb)
+    doubt = 0.0
     for d in range(dhi - dlo + 1):
         for a in range(nb):
             g[a] = tv[d + a]
+            raw[a] = vv[d + a, 0]
             for b in range(a, nb):
                 x = vv[d + a, b - a]
                 for s in range(nseg):
@@ -225,27 +247,30 @@ def _best_delay(v: Floats, rows: Ints, row_seg: Ints, seg_rows: Floats, qy: Floa
                     x -= qv[d + a, c] * qv[d + b, c]
                 h[a, b] = x
                 h[b, a] = x
-        sse = tt - _reduction(h, g)
+        reduction, err = _reduction(h, g, raw)
+        doubt = max(doubt, err)
+        sse = tt - reduction
         if sse < best:
             best = sse
             best_d = d + dlo
-    return max(best, 0.0), best_d
+    return max(best, 0.0), best_d, doubt
 
 
-@njit(cache=True, aot='Tuple((f8[:, ::1], i8[:, ::1]))(f8[::1], f8, b1, i8[::1], f8[::1], '
-                      'i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1], f8[::1], f8, '
-                      'f8[::1], f8[::1], i8, i8, i8)')
+@njit(cache=True, aot='Tuple((f8[:, ::1], i8[:, ::1], f8[:, ::1]))(f8[::1], f8, b1, '
+                      'i8[::1], f8[::1], i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], '
+                      'f8[:, ::1], f8[::1], f8, f8[::1], f8[::1], i8, i8, i8)')
 def _grid_sse(u: Floats, ubar: float, integrate: bool, start_dir: Ints, start_frac: Floats,
               starts: Ints, stops: Ints, rows: Ints, row_seg: Ints, seg_rows: Floats,
               qy: Floats, tres: Floats, tt: float, s_values: Floats, j_values: Floats, dlo: int,
-              dhi: int, nb: int) -> tuple[Floats, Ints]:
+              dhi: int, nb: int) -> tuple[Floats, Ints, Floats]:
     v = np.zeros(u.shape[0])
     sse = np.empty((s_values.shape[0], j_values.shape[0]))
     delay = np.empty((s_values.shape[0], j_values.shape[0]), dtype=np.int64)
+    doubt = np.empty((s_values.shape[0], j_values.shape[0]))
     for i in range(s_values.shape[0]):
         for j in range(j_values.shape[0]):
             _valve_path(u, starts, stops, s_values[i], j_values[j], ubar, integrate, start_dir,
                         start_frac, v)
-            sse[i, j], delay[i, j] = _best_delay(v, rows, row_seg, seg_rows, qy, tres, tt,
-                                                 dlo, dhi, nb)
-    return sse, delay
+            sse[i, j], delay[i, j], doubt[i, j] = _best_delay(
+                v, rows, row_seg, seg_rows, qy, tres, tt, dlo, dhi, nb)
+    return sse, delay, doubt

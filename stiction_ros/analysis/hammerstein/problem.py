@@ -30,6 +30,9 @@ from stiction_ros.kernels.hammerstein import _grid_sse, segment_path
 
 # Fewer regression rows leave the ARX fit and the residual statistics unreliable.
 MIN_ROWS = 200
+# The share of the target's sum of squares by which a grid cell's SSE may be wrong
+# before it is scored again by least squares (the kernel's own bound on its rounding).
+DOUBT = 1e-6
 
 
 def valid_segments(op, pv, segments=None, min_samples=2) -> list:
@@ -72,6 +75,7 @@ class HammersteinProblem(fit_core.Problem):
         self.na, self.nb = na, nb
         self.dlo, self.dhi = int(min_delay), int(max_delay)
         self.segments = kept
+        self.rescored = 0           # grid cells scored again by least squares (grid)
         rows = [np.arange(a + lead, b, dtype=np.int64) for a, b in self.segments]
         self.exclude = list(exclude)
         for lo, hi in self.exclude:
@@ -118,17 +122,27 @@ class HammersteinProblem(fit_core.Problem):
 
         ``start`` holds the valve's start state, (direction, fraction) per
         segment (see :func:`segment_path`); dead times ``dlo`` to ``dhi``.
+        A cell whose SSE the kernel may have wrong by more than ``DOUBT`` of
+        the target's sum of squares (a valve path that the plant's own lags
+        nearly repeat, so that the projection cancels most of its digits) is
+        scored again by plain least squares, at every dead time.
         """
         dlo = self.dlo if dlo is None else max(self.dlo, dlo)
         dhi = self.dhi if dhi is None else min(self.dhi, dhi)
         s = np.ascontiguousarray(s_values, dtype=np.float64)
         j = np.ascontiguousarray(j_values, dtype=np.float64)
         self.evaluations += s.size * j.size
-        return _grid_sse(self.op, self.ubar, self.integrating,
-                         np.array([d for d, _ in start], dtype=np.int64),
-                         np.array([f for _, f in start], dtype=np.float64), self.starts,
-                         self.stops, self.rows, self.row_seg, self.seg_rows, self.qy, self.tres,
-                         self.tt, s, j, dlo, dhi, self.nb)
+        sse, delay, doubt = _grid_sse(
+            self.op, self.ubar, self.integrating, np.array([d for d, _ in start], dtype=np.int64),
+            np.array([f for _, f in start], dtype=np.float64), self.starts, self.stops,
+            self.rows, self.row_seg, self.seg_rows, self.qy, self.tres, self.tt, s, j, dlo, dhi,
+            self.nb)
+        for a, b in zip(*np.nonzero(doubt > DOUBT * self.tt)):
+            self.rescored += 1
+            fits = self.fits(s[a], j[b], range(dlo, dhi + 1), start)
+            sse[a, b], delay[a, b] = min((float(r @ r), d) for d, (_, r) in
+                                         zip(range(dlo, dhi + 1), fits))
+        return sse, delay
 
     def at_rest(self) -> tuple:
         """Return the default start state: every segment at rest with no direction."""
@@ -143,14 +157,21 @@ class HammersteinProblem(fit_core.Problem):
 
     def fit(self, S, J, delay, start) -> tuple:
         """Return (coefficients dict, residuals) of the ARX model at (S, J, dead time)."""
+        return self.fits(S, J, [delay], start)[0]
+
+    def fits(self, S, J, delays, start) -> list:
+        """Return :meth:`fit` for each dead time of ``delays``, the valve's path made once."""
         v = self.mv_hat(S, J, start) - self.ubar
         if self.integrating:
             for a, b in self.segments:
                 v[a:b] = np.cumsum(v[a:b])
         t, fixed = self.target_and_lags()
-        vlags = np.column_stack([v[self.rows - delay - i] for i in range(self.nb)])
         ind = (self.row_seg[:, None] == np.arange(len(self.segments))).astype(np.float64)
-        x = np.hstack([fixed, vlags, ind])
-        coef, *_ = np.linalg.lstsq(x, t, rcond=None)
         nf = fixed.shape[1]
-        return {'a': coef[:self.na], 'b': coef[nf:nf + self.nb]}, t - x @ coef
+        out = []
+        for delay in delays:
+            vlags = np.column_stack([v[self.rows - delay - i] for i in range(self.nb)])
+            x = np.hstack([fixed, vlags, ind])
+            coef, *_ = np.linalg.lstsq(x, t, rcond=None)
+            out.append(({'a': coef[:self.na], 'b': coef[nf:nf + self.nb]}, t - x @ coef))
+        return out
