@@ -162,12 +162,14 @@ def check_complete(stamps, sent, ns, stop_ns):
                      'sent_after_stop': after[t],
                      'last_ms_before_stop': round((stop_ns - int(bag[-1])) / 1e6, 1),
                      'samples_skipped_by_node': int(k[-1] - k[0] + 1 - len(np.unique(k)))}
-    # They all stopped within a sample or two of one another, and within half a second of
+    # They all stopped within a few samples of one another, and within half a second of
     # the signal: counted in the samples each topic had after it, as the test's subscriber
     # saw them (the recorder stops at the signal, so the bag cannot show a node running on).
     # Not from the bag's last send stamps: a write that stalls at the stop (330 ms once,
     # between one sample's sp and op) stamps that sample's last message late.
-    assert max(after.values()) - min(after.values()) <= 2, after
+    # Up to 3 apart: the nodes' phases in a sample, when each takes the signal under load,
+    # and a last message lost with its writer at exit can each move a count by one.
+    assert max(after.values()) - min(after.values()) <= 3, after
     assert max(after.values()) <= 0.5 / TS, after
     return report
 
@@ -237,11 +239,12 @@ def run_group(tmp_path, probe, ns, stop, tty=False):
     # A string, whole: pytest shortens the repr of anything else, and the log of the node
     # that failed is the one clue to why (a CI run once showed the valve's end only).
     logs = term.output.decode(errors='replace') if tty else '\n'.join(
-        f'--- {n} (exit {codes.get(n)}):\n' + (tmp_path / f'{n}.log').read_text()
+        f'--- {n} (exit {codes.get(n)}):\n'
+        + (tmp_path / f'{n}.log').read_text(errors='replace')
         for n in sorted(NODES, key=lambda n: codes.get(n) == 0))
     assert codes == dict.fromkeys(NODES, 0), f'exit codes {codes}\n{logs}'
     outputs = {'the terminal': logs} if tty else {
-        n: (tmp_path / f'{n}.log').read_text() for n in NODES}
+        n: (tmp_path / f'{n}.log').read_text(errors='replace') for n in NODES}
     for where, text in outputs.items():
         if 'DDS teardown still running' in text or 'Timeout (' in text:
             # A stalled teardown ends with the run's status, so the test passes; its stacks

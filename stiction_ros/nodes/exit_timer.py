@@ -10,6 +10,7 @@ its run earned, whatever the main thread is stuck in.
 """
 
 import ctypes
+import ctypes.util
 
 CLOCK_MONOTONIC = 1
 SIGEV_THREAD = 2
@@ -47,16 +48,20 @@ def exit_after(seconds: float, status: int) -> bool:
     Returns
     -------
     bool
-        False where the C library has no ``timer_create`` (not Linux), or the
-        kernel refused the timer: the caller then needs another way out.
+        False where the process has no ``timer_create`` (not Linux; glibc
+        before 2.34 keeps it in librt, loaded here when found), or the kernel
+        refused the timer: the caller then needs another way out.
 
     """
     if not 0 <= status <= 255:
         raise ValueError(f'exit status {status} is not in 0..255')
     try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        create, settime, end = libc.timer_create, libc.timer_settime, libc._exit
-    except (OSError, AttributeError):
+        libc = ctypes.CDLL(None)
+        end = libc._exit
+        rt = libc if hasattr(libc, 'timer_create') else ctypes.CDLL(
+            ctypes.util.find_library('rt') or 'librt.so.1')
+        create, settime = rt.timer_create, rt.timer_settime
+    except (OSError, AttributeError, TypeError):
         return False
     if ctypes.sizeof(_Sigevent) != 64 or ctypes.sizeof(ctypes.c_void_p) != 8:
         return False        # another ABI: the layout above would be wrong

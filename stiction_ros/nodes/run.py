@@ -56,9 +56,9 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # ignores), and its SIGKILL 5 s after that; a teardown takes well under 1 s.
 TEARDOWN_S = 3.0
 # The watchdog is a Python thread, which a teardown stalled inside C code with the
-# GIL held starves; faulthandler's thread and a kernel timer need no GIL.  They end
-# the process this much later, with every stack and the run's status, through
-# interpreter exit too.
+# GIL held starves; faulthandler's thread and a kernel timer need no GIL.  This much
+# later faulthandler prints every stack, and STACKS_S after it the timer ends the
+# process with the run's status, through interpreter exit too.
 BACKSTOP_S = 4.0
 # Between faulthandler's stacks and the backstop's exit: time to write them out.
 STACKS_S = 0.25
@@ -173,7 +173,8 @@ def run(factory, args=None, prog='node'):
     finally:
         ignore_stop_signals()
         nodes = node if isinstance(node, list) else [node]
-        status = [code]
+        # An exception on its way out (a callback's) fails the run even if teardown stalls.
+        status = [code if sys.exc_info()[1] is None else 1]
         try:
             _close_all(nodes)
         except BaseException:
@@ -204,7 +205,9 @@ def end_teardown_within(seconds: float, prog: str, status: list) -> threading.Ti
     backstop = seconds + BACKSTOP_S
     # The stacks at the backstop, then the exit with the run's status a moment later; where
     # the C library has no such timer, faulthandler ends the process itself (status 1).
-    hard = exit_after(backstop + STACKS_S, status[0])
+    # Never raise here, inside run()'s teardown: an exit status is a byte anyway.
+    hard = exit_after(backstop + STACKS_S,
+                      status[0] & 0xFF if isinstance(status[0], int) else 1)
     faulthandler.dump_traceback_later(backstop, exit=not hard, file=sys.stderr)
 
     def _end():
