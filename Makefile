@@ -55,8 +55,8 @@ accuracy: venv
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
 # stiction_ros/resources/stiction_detector.npz.  About 11-14 min on 2 cores from scratch
-# (the figures of 7 500 simulated records, and the slip footprints of the sticky calibration
-# records), under a minute once out/detector_cache holds them.
+# (the figures of 7 500 simulated records, the slip footprints of their sticky records and
+# the large network's logits of both sets), 1-2 min once out/detector_cache holds them.
 detector: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.detector
 
@@ -111,19 +111,19 @@ bench-detector: venv
 	$(PY) -m bench.detector_bench
 
 # --explain run blind on concealed closed-loop cases, on scoring seeds nothing was tuned
-# on (about 10 min on 2 cores): the friction effects (65 cases), then the instrument and
-# timing effects at 0.1-5 s sampling (44 runs); writes docs/EXPLAIN_BENCHMARK.md,
+# on (about 6 min on 2 cores): the friction effects (65 cases), then the instrument and
+# timing effects at 0.1-5 s sampling (52 runs); writes docs/EXPLAIN_BENCHMARK.md,
 # docs/explain_bench.json and docs/instrument_bench.json.
 bench-explain: venv
 	$(PY) -m bench.explain_bench --seed-offset 900000
 	$(PY) -m bench.instrument_bench --seeds-from 700000
 
-# 20 loops of 3 node processes at 10 Hz for 10 min, recorded into one bag, after a
-# 1-loop baseline (about 15 min): the load section of docs/BENCHMARKS.md.
+# 20 loops of 3 node processes recorded into one bag for 10 min, at 10 Hz and again at
+# 1 s, each after a 1-loop baseline (about 30 min): the load section of docs/BENCHMARKS.md.
 bench-load: venv
 	$(PY) -m bench.load_bench
 
-# Every benchmark: speed, --explain's accuracy and load, about 40 min.
+# Every benchmark: speed, --explain's accuracy and load, about 70 min.
 bench-all: bench bench-explain bench-load
 
 colcon: venv

@@ -250,7 +250,7 @@ def markdown(study: dict) -> str:
            if 'trees_alone_calibration_balanced_accuracy' in fig else '') + '.',
         *_cnn_line(study.get('cnn')),
         *_cnn_line(study.get('cnn_large'), 'The large network the stack weighs in '
-                   '(`make cnn-large`)'),
+                   '(`make cnn-large`, then `make cnn-large-tune`)'),
         f'- Whole analysis of one plant file (reading, fits, signatures, detector, '
         f'Hammerstein, HTML): median {sorted(secs)[len(secs) // 2]:.2f} s, max {max(secs):.2f} s.',
         '',

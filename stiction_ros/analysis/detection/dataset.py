@@ -3,8 +3,10 @@ Simulated records as detector features: the training, calibration and test sets.
 
 A record is drawn and simulated from its seed alone (``stiction_ros.sim.corpus``),
 so a set is fully described by its seed range: training, calibration and
-scoring sets never share a seed.  Records the detector would answer
-``cannot tell`` on are left out of training, as they are at run time.
+scoring sets never share a seed.  Records that cannot be judged (section 1
+of docs/DETECTION.md) are left out, as they are refused at run time, and so
+are those whose stiction is hidden under PV's noise; records the band
+answers ``cannot tell`` for balanced evidence are kept.
 """
 
 from concurrent.futures import ProcessPoolExecutor

@@ -20,7 +20,8 @@ prints the score with it counted as sticky beside it, and ``make detector``
 leaves it out of the training records and of the calibration map, so the
 stated probability is that of a stick-slip OP and PV can show (the trees
 since 2026-11-27, fifteenth session; the large network was trained on
-without them, ``make cnn-large-tune``).  On the calibration seeds 225 of the 816 judged sticky records are deadband-like;
+without them, ``make cnn-large-tune``).  On the calibration seeds 225 of
+the 816 judged sticky records are deadband-like;
 the detector before this map called 178 of them stiction and flagged 49 of
 the 107 backlash valves, which look the same (docs/DETECTION.md, section 3).
 

@@ -212,7 +212,7 @@ def probability_text(p: float) -> str:
     """
     Return ``p`` as the analyzer prints it: two decimals, three in the tails.
 
-    The calibration's lowest and highest steps read about 0.002 and 0.998;
+    The calibration's lowest and highest steps read about 0.001 and 0.999;
     printed to two decimals they would read 0.00 and 1.00, a certainty that a
     thousand calibration records cannot support.
     """

@@ -1,11 +1,14 @@
 """
-The detector's last step: the trees' score and a larger network's logit, weighed together.
+The detector's last step: the trees' score and a large network's logit, weighed together.
 
 The boosted trees read the engineered figures (and the small network's logit,
-one figure among them) and learn from 3 150 simulated records, since each
-costs about 1.8 s of figures.  A network reading the trend itself costs a
-few milliseconds a record, so it can learn from 480 000 (``make cnn-large``,
-on a GPU).  Alone it scores about what the trees do; a logistic regression
+one figure among them) and learn from 2 818 simulated records (4 500 seeds
+less those that cannot be judged or are deadband-like), since each costs
+about 1.8 s of figures.  A network reading the trend itself costs a few
+milliseconds a record, so the same shape of network can learn from 480 000
+(``make cnn-large``, on a GPU), then from 7 262 more without the
+deadband-like sticky ones (``make cnn-large-tune``).  Alone it scores about
+what the trees do; a logistic regression
 on the two, fitted on the training seeds with the trees' scores out of fold
 (``train.fit_stack``), scores better than either (docs/DETECTION.md,
 section 3).  The isotonic calibration then maps the stacked score to a

@@ -1,5 +1,5 @@
 """
-Stuck periods and slip events on records without an oscillation.
+Stuck periods and slip events: stiction that need not oscillate (read on every record).
 
 Kano, Maruta, Kugemoto and Shimizu (2004), Practical model and detection
 algorithm for valve stiction, IFAC DYCOPS, read the valve's stuck periods
