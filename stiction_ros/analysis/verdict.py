@@ -15,6 +15,8 @@ healthy loops, see docs/ACCURACY.md).  The weights and the threshold are the one
 cross-validated accuracy on the real plant loops is in ``docs/ACCURACY.md``.
 """
 
+from stiction_ros.analysis.signatures.ellipse import MAX_RESIDUAL
+
 MIN_S = 0.2
 MIN_IMPROVEMENT = 0.5
 WEIGHTS = {'horch': 1.0, 'he_curve_fit': 1.0, 'hos_pv_op': 1.0, 'yamashita': 1.0,
@@ -75,7 +77,9 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None):
     apparent = None
     ell = sigs.get('ellipse')
     sized = detection is None or (detection.judge.ok and not detection.period_problem)
-    if ell is not None and ell.value is not None and sized:
+    # A PV-OP map that is no ellipse has a width, but not one of a valve's band.
+    if (ell is not None and ell.value is not None and sized
+            and ell.details.get('fit_residual', 0.0) <= MAX_RESIDUAL):
         apparent = ell.value
     extra = {}
     if fits:

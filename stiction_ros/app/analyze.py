@@ -273,6 +273,12 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     say(f'reading {options.input}')
     record = load_record(options.input, namespace=options.namespace, window=options.window,
                          columns=dict(options.columns) if options.columns else None)
+    if not (record.has('pv') or record.has('mv')):
+        held = ', '.join(s for s in ('op', 'sp') if record.has(s))
+        fix = ('record the pv or mv topic' if record.source.get('format') == 'bag' else
+               "name the column with --columns pv=COLUMN (a tag's PV such as FIC101.PV)")
+        raise InputError(f'{record.path}: no process value (pv) and no valve position (mv), '
+                         f'only {held}: OP alone cannot show what the valve did; {fix}')
     sampling = record.source.get('sampling')
     say(f'{record.samples} samples at {record.sample_time:g} s'
         + (f' ({sampling})' if sampling else '') + ', signals '

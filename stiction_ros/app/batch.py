@@ -89,8 +89,10 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
     Returns
     -------
     dict
-        The summary row: ``input``, ``ok``, then ``detected``, ``score``,
-        ``fits``, ``summary`` (and ``effect``, ``report``) or ``error``; ``seconds``.
+        The summary row: ``input``, ``ok``, then ``detected``, ``answer``,
+        ``probability`` (OP/PV only), ``score`` (None where the record could not be
+        judged), ``fits``, ``summary`` (and ``why_not``, ``effect``, ``report``) or
+        ``error``; ``seconds``.
 
     """
     t0 = time.perf_counter()
@@ -105,7 +107,10 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         st = report['stiction']
         if st['detected'] is None:
             row['why_not'] = _why_not(st)
-        row.update(ok=True, detected=st['detected'], score=st['score'],
+        judged = st['detected'] is not None or st.get('probability') is not None
+        # A record that could not be judged has no score; 0 would sort it with the healthy.
+        row.update(ok=True, detected=st['detected'], answer=st.get('answer'),
+                   probability=st.get('probability'), score=st['score'] if judged else None,
                    fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
                    summary=summary_line(report))
         if 'mismatch' in report:

@@ -67,6 +67,8 @@ def summary_line(report: dict) -> str:
         line += f'\n  evidence: {ev}'
     if st.get('size_withheld'):
         line += f'\n  no size given: {st["size_withheld"]}'
+    if st.get('size_caution'):
+        line += f'\n  size caution: {st["size_caution"]}'
     if 'mismatch' in report and 'baseline' not in report:
         line += f'\nmismatch: cannot tell: {report["mismatch"]["explanation"]}'
     elif 'mismatch' in report:
@@ -158,7 +160,9 @@ def size_text(report: dict) -> str:
         if best.get('S_interval') and best.get('J_interval'):
             (s0, s1), (j0, j1) = best['S_interval'], best['J_interval']
             ranges = f'; 95 %: S {s0:.2f}-{s1:.2f}, J {j0:.2f}-{j1:.2f}'
-        return f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
+        text = f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
+        caution = st.get('size_caution')
+        return f'{text}; reads low: {caution}' if caution else text
     withheld = st.get('size_withheld')
     if withheld:
         # 'cannot tell' says the same reason on the first line.

@@ -88,6 +88,8 @@ def _verdict(report: dict) -> list:
         out.append(rule(how))
     if st.get('size_withheld'):
         out.append(f'<p>No size is given: {clean(st["size_withheld"])}</p>')
+    if st.get('size_caution'):
+        out.append(f'<p>The size reads low: {clean(st["size_caution"])}</p>')
     vote = st.get('signature_vote')
     if vote:
         out.append(f'<p>Beside it, the vote of the signatures (each decided signature counts '

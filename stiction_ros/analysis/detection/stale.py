@@ -82,10 +82,17 @@ class StaleRows:
         if not self.count:
             return ''
         longest = _longest_run(self.held)
-        return (f'{self.count} of {len(self.held)} rows repeat the previous row exactly in OP '
-                f'and PV ({self.runs} runs, the longest {longest} rows = '
-                f'{longest * sample_time:.0f} s): held values (by the historian, or over an '
-                f'invalid sample), not measurements; the detector read the fresh rows only')
+        span = f'{longest * sample_time:.0f} s'
+        if self.runs == 1:
+            where = f'one run of {longest} rows = {span}' if longest > 1 else span
+        elif longest == 1:
+            where = f'{self.runs} single rows of {span} each'
+        else:
+            where = f'{self.runs} runs, the longest {longest} rows = {span}'
+        verb = 'repeats' if self.count == 1 else 'repeat'
+        return (f'{self.count} of {len(self.held)} rows {verb} the previous row exactly in OP '
+                f'and PV ({where}): held values (by the historian, or over an invalid '
+                f'sample), not measurements; the detector read the fresh rows only')
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
