@@ -220,6 +220,13 @@ def test_the_hammerstein_fit_and_the_detector_are_tables_and_rules_not_dumps(pag
     assert [c['feature'] for c in leaned['contributions']] == list(rests)
     for c in leaned['contributions']:
         assert rests[c['feature']][1] == f'{c["log_odds"]:+.2f}'
+    # The jump's ratio is read against the chi-square point it is tested by.
+    jump = ham['details']['jump_likelihood_ratio']
+    meaning = rows['likelihood ratio, slip jump vs deadband (J = 0)'][1]
+    assert meaning.startswith('at least 3.84' if jump >= 3.84 else 'below 3.84')
+    # Without MV the maps figure has the PV-OP panel alone, and says so.
+    text = words(parsed)
+    assert 'against OP (%).' in text and 'Left: MV against OP' not in text
 
 
 def test_each_candidate_says_why_it_was_or_was_not_named(pages):

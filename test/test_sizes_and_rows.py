@@ -114,3 +114,53 @@ def test_an_under_sampled_cycle_is_told_the_sample_time_that_resolves_it():
     assert judge.code == 'under_sampled'
     # At least 10 samples a cycle: 14.4 s, what the rule itself asks.
     assert 'at least 10 samples a cycle: record at 14.4 s or faster' in judge.reason
+
+
+def test_evidence_words_say_what_the_figures_say():
+    from types import SimpleNamespace
+    from stiction_ros.analysis.detection.detect import evidence_lines, leaned_line
+    from stiction_ros.analysis.detection.stuck import StuckResult
+    from stiction_ros.analysis.verdict import from_fits
+    st = StuckResult(stuck=[(10, 60, 2.0)], ramp_r2=0.02, log_offset=np.log10(189.0))
+    yam = Signature('yamashita', 0.9, 0.5, True, '28 of 29 informative samples', 'ref', {})
+    ev = {'stuck': st, 'oscillation': SimpleNamespace(oscillating=False), 'period_problem': '',
+          'signatures': {'yamashita': yam}}
+    lines = evidence_lines(ev, 10.0)
+    # An R^2 of 0.02 is no ramp, whatever the held error says.
+    assert any('OP moved but not in a straight ramp (R^2 0.02 of a line)' in x for x in lines)
+    assert 'yamashita on its own: stiction (28 of 29 informative samples)' in lines
+    leaned = {'start': -0.27, 'score': 3.78, 'contributions': [
+        {'feature': 'cnn_logit', 'value': 2.35, 'log_odds': 0.87}]}
+    assert 'from -0.27, before any figure is read, to +3.78' in leaned_line(leaned)
+    fit = {'model': 'kano', 'S': 2.98, 'J': 0.0, 'mse': 1.3, 'S_interval': [2.74, 3.96],
+           'improvement': 0.53}
+    assert '(95 % range 2.74-3.96)' in from_fits([fit])[3]
+
+
+def test_a_record_judged_on_part_of_its_valid_samples_says_so():
+    from stiction_ros.app.report_text import judged_text
+    report = {'valid_samples': 677, 'signature_window': {
+        'start_s': 2600.0, 'end_s': 7490.0, 'samples': 490, 'held': 0}}
+    assert judged_text(report) == ('OP and PV on their longest valid stretch only, 490 of 677 '
+                                   'valid samples (2600-7490 s); gaps split the rest')
+    report['signature_window']['samples'] = 660
+    assert judged_text(report) == ''
+
+
+def test_a_workbook_in_a_folder_is_a_row_that_says_to_save_it_as_csv(tmp_path):
+    import zipfile
+    from stiction_ros.app.batch import expand
+    with zipfile.ZipFile(tmp_path / 'loops.xlsx', 'w') as z:
+        z.writestr('xl/workbook.xml', '<workbook/>')
+    (tmp_path / 'readme.md').write_text('not a recording')
+    paths = expand(str(tmp_path))
+    assert [p.rsplit('/', 1)[-1] for p in paths] == ['loops.xlsx']
+    row = analyze_one(paths[0], AnalyzeOptions(input=paths[0]))
+    assert not row['ok'] and 'CSV' in row['error']
+
+
+def test_the_signature_table_says_it_read_the_held_rows_the_detector_did_not():
+    from stiction_ros.viz.report_html import _signatures
+    assert not any('held rows' in part for part in _signatures({}, 0))
+    note = ' '.join(_signatures({}, 314))
+    assert 'the 314 held rows included' in note and 'fresh rows only' in note

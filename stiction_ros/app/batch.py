@@ -26,6 +26,9 @@ from stiction_ros.app.report_text import summary_line, VERDICT_WORDS
 from stiction_ros.errors import InputError, StictionError
 
 RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap')
+# Not read, but listed: each gets a row saying to save its sheet as CSV, rather
+# than a folder's workbook vanishing from the batch without a word.
+WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
 
 
 def _is_bag(path):
@@ -42,7 +45,7 @@ def _walk(folder):
             found.append(p)
         elif p.is_dir():
             found += _walk(p)
-        elif p.suffix.lower() in RECORDING_SUFFIXES:
+        elif p.suffix.lower() in RECORDING_SUFFIXES + WORKBOOK_SUFFIXES:
             found.append(p)
     return found
 
@@ -52,7 +55,8 @@ def expand(source):
     Return the recordings ``source`` names when it names several, else None.
 
     A glob (``*``, ``?``, ``[``) names what it matches; a directory that is not
-    a bag names every bag, CSV, historian export (.txt/.tsv) and .mcap below it.
+    a bag names every bag, CSV, historian export (.txt/.tsv) and .mcap below it,
+    and every workbook (.xlsx, .xls, .ods), which its row then refuses with the fix.
     """
     if any(c in source for c in '*?['):
         paths = sorted(glob.glob(source, recursive=True))

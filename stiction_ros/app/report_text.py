@@ -120,6 +120,9 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
         add('', f'(and {len(evidence) - EVIDENCE_LINES} more in the report)')
     add('size', size_text(report))
     add('excluded', excluded_text(report))
+    judged = judged_text(report)
+    if judged:
+        add('judged', judged)
     add('report', ', '.join(files) if files else 'no file written (--json FILE, --html FILE)')
     text = '\n'.join(lines)
     if 'mismatch' in report and 'baseline' not in report:
@@ -180,6 +183,17 @@ def size_text(report: dict) -> str:
         return (f'not given: the Hammerstein fit (S={ham["S"]:.2f} % J={ham["J"]:.2f} %) is '
                 'unreliable, see stiction.hammerstein.reason')
     return 'not given'
+
+
+def judged_text(report: dict) -> str:
+    """Return what part of the valid samples OP and PV were judged on, if notably less."""
+    win, valid = report.get('signature_window'), report.get('valid_samples') or 0
+    # With MV the fits decide, and they run on across gaps.
+    if report.get('fits') or not win or win['samples'] >= 0.9 * valid:
+        return ''
+    # Gaps split the record and the signatures and the detector read one stretch.
+    return (f'OP and PV on their longest valid stretch only, {win["samples"]} of {valid} valid '
+            f'samples ({win["start_s"]:g}-{win["end_s"]:g} s); gaps split the rest')
 
 
 def excluded_text(report: dict) -> str:

@@ -29,6 +29,9 @@ SIGNATURES = {
     'slip_events': ('slip events', '', '&ge;'),
 }
 
+# The 95 % point of chi-square with one degree of freedom: a jump that earns its place.
+CHI2_1_95 = 3.84
+
 CAPTIONS = {
     'trends': 'Time trends. Top: OP and, where recorded, the measured MV and each '
               f'model&rsquo;s MV, in % of travel. Bottom: PV and SP in {PV_UNITS} (the '
@@ -36,6 +39,9 @@ CAPTIONS = {
               'Grey bands: excluded stretches.',
     'maps': 'Left: MV against OP (both in %), with each model and the ideal valve (MV = OP). '
             f'Right: PV ({PV_UNITS}) against OP (%).',
+    # The same figure with one panel, when the record has MV or PV only.
+    'maps_mv': 'MV against OP (both in %), with each model and the ideal valve (MV = OP).',
+    'maps_pv': f'PV ({PV_UNITS}) against OP (%).',
     'mismatch': '--explain: the residual MV - model (%) over time with the worst stretches '
                 'shaded and the start of the held-out part; the plain model&rsquo;s error '
                 'after each breakaway against rest time, position and time; the MV-OP map '
@@ -126,7 +132,7 @@ def _oscillation(osc: dict) -> list:
     return ['<h2>Oscillation</h2>', table(['quantity', 'value', 'meaning'], rows)]
 
 
-def _signatures(sigs: dict) -> list:
+def _signatures(sigs: dict, held_rows: int = 0) -> list:
     rows = []
     for name, s in sigs.items():
         what, unit, op = SIGNATURES.get(name, ('value', '', ''))
@@ -134,12 +140,17 @@ def _signatures(sigs: dict) -> list:
                      else f'{op} {num(s["threshold"], unit=unit)}')
         rows.append([e(name), e(what), num(s.get('value'), unit=unit), rule_text,
                      _decision(s.get('stiction')), clean(s.get('reason', ''))])
-    return ['<h2>Signatures (OP and PV only)</h2>',
-            rule('A signature says stiction when its value passes its threshold in the '
-                 'direction shown; bicoherence only finds the loop non-linear, which the PV-OP '
-                 'ellipse then sizes (hos_pv_op). Undetermined: the record cannot tell (too '
-                 'short, no oscillation, between the two thresholds of the paper).'),
-            table(['signature', 'measures', 'value', 'stiction when', 'decision', 'why'], rows)]
+    out = ['<h2>Signatures (OP and PV only)</h2>',
+           rule('A signature says stiction when its value passes its threshold in the '
+                'direction shown; bicoherence only finds the loop non-linear, which the PV-OP '
+                'ellipse then sizes (hos_pv_op). Undetermined: the record cannot tell (too '
+                'short, no oscillation, between the two thresholds of the paper).'),
+           table(['signature', 'measures', 'value', 'stiction when', 'decision', 'why'], rows)]
+    if held_rows:
+        out.append(rule(f'This table reads every row of the stretch, the {held_rows} held rows '
+                        'included; the detector and its evidence lines read the fresh rows '
+                        'only, so their counts and times can differ from these.'))
+    return out
 
 
 def _hammerstein(ham: dict) -> list:
@@ -162,9 +173,11 @@ def _hammerstein(ham: dict) -> list:
                      num(d['likelihood_ratio']),
                      f'on {num(d.get("effective_samples"), 4)} effective samples'])
     if d.get('jump_likelihood_ratio') is not None:
-        rows.append(['likelihood ratio, slip jump vs deadband (J = 0)',
-                     num(d['jump_likelihood_ratio']),
-                     'small: a valve with backlash and no jump explains PV as well'])
+        lr = d['jump_likelihood_ratio']
+        rows.append(['likelihood ratio, slip jump vs deadband (J = 0)', num(lr),
+                     (f'{"at least" if lr >= CHI2_1_95 else "below"} {CHI2_1_95} (chi-square, '
+                      'one degree of freedom, 95 %): a valve with backlash and no jump '
+                      f'explains PV {"worse" if lr >= CHI2_1_95 else "as well"}')])
     se = d.get('jackknife_se') or {}
     if se:
         rows.append(['jackknife standard error', f'S {num(se.get("S"), 3, "%")}, '
@@ -181,17 +194,19 @@ def _leaned(leaned: dict) -> list:
              f'{c["log_odds"]:+.2f}'] for c in leaned.get('contributions', [])]
     return ["<h2>What the detector's score rests on</h2>",
             f'<p>The detector&rsquo;s score starts from {leaned["start"]:+.2f} (log-odds of '
-            f'stiction, for a record it knows nothing about) and reaches '
+            f'stiction, before it reads any figure of the record) and reaches '
             f'{leaned["score"]:+.2f}; these parts moved it most (docs/DETECTION.md, section 2, '
             f'says what each figure measures; <code>cnn_large_logit</code> is the large '
             f'network&rsquo;s).</p>',
             table(['figure', 'value', 'moved the score by'], rows)]
 
 
-def _figures(figures: list) -> list:
+def _figures(figures: list, signals: list) -> list:
     out = ['<h2>Figures</h2>']
     for p in figures:
         stem = Path(p).stem
+        if stem == 'maps' and not {'mv', 'pv'} <= set(signals):
+            stem = 'maps_mv' if 'mv' in signals else 'maps_pv'
         caption = CAPTIONS.get(stem, LANDSCAPE if stem.startswith('landscape') else '')
         out.append(figure(p, caption))
     return out
@@ -221,12 +236,13 @@ def render(report: dict, figures: list) -> str:
     if st.get('oscillation'):
         parts += _oscillation(st['oscillation'])
     if st.get('signatures'):
-        parts += _signatures(st['signatures'])
+        parts += _signatures(st['signatures'],
+                             (st.get('detector') or {}).get('held_rows', 0))
     if report.get('mismatch'):
         parts += explain_parts(report)
     if st.get('hammerstein'):
         parts += _hammerstein(st['hammerstein'])
-    parts += _figures([p for p in figures if p and Path(p).exists()])
+    parts += _figures([p for p in figures if p and Path(p).exists()], report.get('signals', []))
     if report.get('excluded'):
         rows = [[num(x.get('start_s'), unit='s'), num(x.get('end_s'), unit='s'),
                  num(x.get('samples')), clean(x.get('reason'))] for x in report['excluded']]

@@ -111,8 +111,9 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
         # Integral action on a constant error ramps OP in a straight line; a
         # loop holding PV against a load that wanders has neither.
         held = 10.0 ** st.log_offset - 1.0
-        line = (f'in its stuck periods OP ramped in a line (R^2 {st.ramp_r2:.2f}) on an '
-                f'error held {held:.3g} standard errors off zero')
+        shape = ('in a straight ramp' if st.ramp_r2 >= RAMP_R2 else 'but not in a straight ramp')
+        line = (f'in its stuck periods OP moved {shape} (R^2 {st.ramp_r2:.2f} of a line) on '
+                f'an error held {held:.3g} standard errors off zero')
         if st.ramp_r2 >= RAMP_R2 and held >= HELD_ERRORS:
             # A load drifting at a steady rate leaves the same trace under PI
             # control (the ramp cancels it): said, so that neither answer reads
@@ -135,7 +136,10 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
         if s is not None and s.stiction is not None:
             if ev['period_problem'] and name in ('horch', 'he_curve_fit', 'hos_pv_op'):
                 continue
-            out.append(f'{name}: {"stiction" if s.stiction else "no stiction"} ({s.reason})')
+            # One signature's own vote, which the detector weighs with the rest:
+            # said as such, so that it does not read as the verdict.
+            out.append(f'{name} on its own: {"stiction" if s.stiction else "no stiction"} '
+                       f'({s.reason})')
     return out
 
 
@@ -253,5 +257,5 @@ def leaned_line(leaned: dict) -> str:
         return f'{c["feature"]} = {value} ({c["log_odds"]:+.2f})'
     parts = [one(c) for c in leaned['contributions']]
     return (f'the learned detector leaned most on {", ".join(parts)} (log-odds toward '
-            f'stiction; its score {leaned["score"]:+.2f} from {leaned["start"]:+.2f} for a '
-            f'record it knows nothing about)')
+            f'stiction; all the parts together move its score from {leaned["start"]:+.2f}, '
+            f'before any figure is read, to {leaned["score"]:+.2f})')
