@@ -21,6 +21,7 @@ from stiction_ros.analysis.signatures.result import Signature
 from stiction_ros.analysis.verdict import combine
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.app.batch import analyze_one
+from stiction_ros.app.report_text import size_text
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
 from stiction_ros.sim.loop_config import load_loop
@@ -55,6 +56,7 @@ def test_mv_sizes_from_a_cycle_of_few_samples_say_they_read_low(sticky_loop, tmp
     assert 'size_caution' not in fine['stiction']
     caution = coarse['stiction']['size_caution']
     assert 'read low' in caution and '25 s' in caution
+    assert 'caution: ' + caution in size_text(coarse)
 
 
 def test_no_size_from_a_pv_op_map_that_is_no_ellipse():
@@ -147,20 +149,63 @@ def test_a_record_judged_on_part_of_its_valid_samples_says_so():
     assert judged_text(report) == ''
 
 
-def test_a_workbook_in_a_folder_is_a_row_that_says_to_save_it_as_csv(tmp_path):
+def test_a_workbook_in_a_folder_is_listed_as_skipped_with_the_fix(tmp_path):
     import zipfile
     from stiction_ros.app.batch import expand
     with zipfile.ZipFile(tmp_path / 'loops.xlsx', 'w') as z:
         z.writestr('xl/workbook.xml', '<workbook/>')
+    (tmp_path / '~$loops.xlsx').write_bytes(b'\0' * 165)   # Excel's lock file
     (tmp_path / 'readme.md').write_text('not a recording')
     paths = expand(str(tmp_path))
     assert [p.rsplit('/', 1)[-1] for p in paths] == ['loops.xlsx']
     row = analyze_one(paths[0], AnalyzeOptions(input=paths[0]))
-    assert not row['ok'] and 'CSV' in row['error']
+    assert row['skipped'] and not row['ok'] and 'save its sheet as CSV' in row['error']
+    # A folder of workbooks alone analysed nothing: that is no audit.
+    run = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.analyze', str(tmp_path)],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    assert run.stdout.splitlines()[-1].endswith(': 1 workbook skipped')
+
+
+def test_a_given_size_gets_no_caution_and_no_invented_range(sticky_loop, tmp_path):
+    rows = {c: np.asarray(v)[::25] for c, v in sticky_loop.items() if np.ndim(v) == 1}
+    write_csv(tmp_path / 'given.csv', rows)
+    rep = analyze_file(AnalyzeOptions(input=str(tmp_path / 'given.csv'), S=S_TRUE,
+                                      J=J_TRUE)).report
+    assert 'size_caution' not in rep['stiction']
+    assert '95 % range' not in rep['stiction']['reason']
+
+
+def test_without_stiction_the_caution_says_a_band_may_be_missed():
+    from types import SimpleNamespace
+    from stiction_ros.analysis.pipeline import sampling_caution
+    rng = np.random.default_rng(1)
+    op = 50 + rng.normal(0, 1, 600).cumsum() * 0.05
+    held = {'op': op, 'pv': 0.8 * op + rng.normal(0, 0.05, 600), 'sp': np.full(600, 40.0)}
+    ringing = SimpleNamespace(oscillating=True, period_s=32.0)
+    healthy = sampling_caution(held, ringing, 5.0, sticks=False)
+    assert 'a small band may have been missed' in healthy and 'read low' not in healthy
+    assert 'read low' in sampling_caution(held, ringing, 5.0, sticks=True)
+    assert sampling_caution(held, SimpleNamespace(oscillating=True, period_s=64.0), 5.0,
+                            sticks=True) == ''
+
+
+def test_the_old_rule_does_not_size_or_vote_on_a_map_that_is_no_ellipse():
+    from stiction_ros.analysis.signatures.bicoherence import hos_with_pv_op
+    nonlinear = Signature('bicoherence', 0.5, 0.1, None, 'nonlinear', 'ref',
+                          {'nonlinear': True, 'ngi': 0.2, 'nli': 0.5})
+
+    def vote(residual):
+        ell = Signature('ellipse', 3.2, 1.0, None, 'a map', 'ref', {'fit_residual': residual})
+        return hos_with_pv_op(nonlinear, ell)
+    assert vote(MAX_RESIDUAL / 2).stiction is True and vote(MAX_RESIDUAL / 2).value == 3.2
+    rejected = vote(MAX_RESIDUAL * 1.6)
+    assert rejected.stiction is None and rejected.value is None
 
 
 def test_the_signature_table_says_it_read_the_held_rows_the_detector_did_not():
     from stiction_ros.viz.report_html import _signatures
-    assert not any('held rows' in part for part in _signatures({}, 0))
+    assert not any('held row' in part for part in _signatures({}, 0))
     note = ' '.join(_signatures({}, 314))
     assert 'the 314 held rows included' in note and 'fresh rows only' in note
+    assert 'the held row included' in ' '.join(_signatures({}, 1))

@@ -252,23 +252,27 @@ def analyze(record: Record, options: Options | None = None,
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
         ham = run_hammerstein(held, record.sample_time, integrating)
     report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
-    if analysis.fits and win is not None:
-        caution = sampling_caution(held, osc, record.sample_time)
+    # A size the user gave was not fitted: nothing to caution about.
+    fitted = [f for f in analysis.fits if f.source != 'given']
+    if fitted and win is not None:
+        caution = sampling_caution(held, osc, record.sample_time,
+                                   bool(report['stiction']['detected']))
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes
     return analysis
 
 
-def sampling_caution(held: dict, osc, sample_time: float) -> str:
+def sampling_caution(held: dict, osc, sample_time: float, sticks: bool) -> str:
     """
-    Return why S and J fitted to MV read low at this sampling, or ''.
+    Return why S and J fitted to MV cannot be trusted at this sampling, or ''.
 
     MV is measured, so the fits see no alias; but a loop cycling in fewer
     than 10 samples has its turning points, where the valve sticks and
-    slips, between samples.  A simulated sticky loop (S 5 %, J 2 %, a
-    144 s cycle) fitted 4.64 % at 18 s and 2.98 % at 60 s, each 95 % range
-    short of 5 %.
+    slips, between samples.  Table 2.1's loop with S 5 %, J 2 % (a 144 s
+    cycle) fitted 4.71 % at 18 s and 2.89 % at 60 s, each 95 % range short
+    of 5 %.  ``sticks``: the fits found stiction, so its band reads low;
+    otherwise a band this sampling cannot resolve may have been missed.
     """
     if judgeable(held['op'], held['pv'], sample_time, held['sp']).code == 'under_sampled':
         seen = ('OP and PV alternate from sample to sample (a cycle of 2-3 samples of '
@@ -278,8 +282,13 @@ def sampling_caution(held: dict, osc, sample_time: float) -> str:
         seen = (f'the loop cycles every {osc.period_s:.4g} s, only '
                 f'{osc.period_s / sample_time:.1f} samples of {sample_time:g} s (at least '
                 f'{MIN_PERIOD_SAMPLES:g} a cycle: record at '
-                f'{osc.period_s / MIN_PERIOD_SAMPLES:.3g} s or faster)')
+                f'{osc.period_s / MIN_PERIOD_SAMPLES:.3g} s or faster, or faster still: at '
+                'this sampling the true cycle may alias to a longer one)')
     else:
         return ''
-    return (f"{seen}; S and J fitted to MV at this sampling miss the valve's turning points "
-            'between samples: they read low, and their 95 % ranges do not allow for it')
+    if sticks:
+        return (f"{seen}; S and J fitted to MV at this sampling miss the valve's turning "
+                'points between samples: they read low, and their 95 % ranges do not allow '
+                'for it')
+    return (f"{seen}; the valve's turning points fall between samples, so a small band may "
+            'have been missed')

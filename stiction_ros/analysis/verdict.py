@@ -29,11 +29,13 @@ def from_fits(fits):
     """Return (detected, score, S, reason) from the model fits."""
     best = min(fits, key=lambda f: f['mse'])
     improvement = best.get('improvement')
-    lo, hi = (best.get('S_interval') or [best['S'], best['S']])[:2]
+    interval = best.get('S_interval')
+    lo = interval[0] if interval else best['S']
     score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
     detected = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
-    why = (f'{best["model"]} fits the measured MV with S = {best["S"]:.2f} % '
-           f'(95 % range {lo:.2f}-{hi:.2f}), J = {best["J"]:.2f} %, MSE {best["mse"]:.4g}')
+    ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
+    why = (f'{best["model"]} fits the measured MV with S = {best["S"]:.2f} %{ranged}, '
+           f'J = {best["J"]:.2f} %, MSE {best["mse"]:.4g}')
     if improvement is not None:
         why += f', {100 * improvement:.0f} % below the MSE of an ideal valve'
     return detected, score, best['S'], why

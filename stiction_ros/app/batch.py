@@ -39,7 +39,8 @@ def _walk(folder):
     # Bags are directories too: a bag is one recording, any other folder is searched.
     found = []
     for p in sorted(folder.iterdir()):
-        if p.name.startswith('.'):
+        # Hidden files, and the lock file Excel keeps beside an open workbook.
+        if p.name.startswith(('.', '~$')):
             continue
         if _is_bag(p):
             found.append(p)
@@ -101,6 +102,12 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
     """
     t0 = time.perf_counter()
     row = {'input': str(path), 'ok': False}
+    if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
+        # Listed so that it is not lost without a word; not read, so not a failure.
+        row.update(skipped=True, error=f'{path}: a workbook, not read: save its sheet as CSV '
+                   '(File > Save As > CSV UTF-8) to include it')
+        row['seconds'] = round(time.perf_counter() - t0, 3)
+        return row
     try:
         # Each worker is one process already: its --explain runs on one thread.
         one = replace(options, input=str(path), json_path=None, html_path=None, jobs=1)
@@ -166,7 +173,8 @@ def progress_step(done: int, total: int, elapsed: float, row: dict) -> Step:
     """Return the progress after ``done`` of ``total`` recordings, the last one's verdict."""
     rate = done / elapsed if elapsed > 0 else 0.0
     eta = (total - done) / rate if rate > 0 else 0.0
-    verdict = VERDICT_WORDS[row['detected']] if row['ok'] else 'error'
+    verdict = (VERDICT_WORDS[row['detected']] if row['ok']
+               else 'skipped' if row.get('skipped') else 'error')
     return Step('recordings', done, total,
                 f'{rate:.2f}/s, ETA {eta:.0f} s; {Path(row["input"]).name}: {verdict}')
 
@@ -200,8 +208,13 @@ class Batch:
 
     @property
     def failed(self) -> int:
-        """Return the number of recordings that could not be analysed."""
-        return sum(not r['ok'] for r in self.rows)
+        """Return the number of recordings that could not be analysed (workbooks aside)."""
+        return sum(not r['ok'] and not r.get('skipped') for r in self.rows)
+
+    @property
+    def skipped(self) -> int:
+        """Return the number of workbooks listed but not read."""
+        return sum(bool(r.get('skipped')) for r in self.rows)
 
     def tally(self) -> dict[str, int]:
         """Return {verdict word: recordings} over the recordings analysed."""
@@ -225,6 +238,7 @@ class Batch:
     def summary(self) -> dict:
         """Return the batch report (``--json``): counts, time, workers and every row."""
         return {'input': self.source, 'recordings': len(self.rows), 'failed': self.failed,
+                'skipped': self.skipped,
                 'seconds': round(self.seconds, 3), 'workers': self.workers, 'rows': self.rows}
 
 

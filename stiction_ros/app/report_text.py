@@ -165,7 +165,7 @@ def size_text(report: dict) -> str:
             ranges = f'; 95 %: S {s0:.2f}-{s1:.2f}, J {j0:.2f}-{j1:.2f}'
         text = f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
         caution = st.get('size_caution')
-        return f'{text}; reads low: {caution}' if caution else text
+        return f'{text}; caution: {caution}' if caution else text
     withheld = st.get('size_withheld')
     if withheld:
         # 'cannot tell' says the same reason on the first line.
@@ -257,7 +257,7 @@ def _chain_lines(report):
 def batch_row_text(row: dict) -> str:
     """Return the lines printed for one recording of a batch (its summary, or its error)."""
     if not row['ok']:
-        return f'{row["input"]}: error: {row["error"]}'
+        return f'{row["input"]}: {"skipped" if row.get("skipped") else "error"}: {row["error"]}'
     # Recordings often share a tag name; the path tells them apart.
     first, *rest = row['summary'].split('\n')
     return '\n'.join([f'{row["input"]}: {first.split(": ", 1)[-1]}', *rest])

@@ -154,9 +154,13 @@ def print_many(batch: Batch) -> int:
     # A balanced case wants a travel test, an unjudgeable one what its reason names.
     words = [f'{n} {w}' + (f' ({why})' if w == VERDICT_WORDS[None] and why else '')
              for w, n in sorted(batch.tally().items())]
-    print(f'{len(rows)} recordings in {seconds:.1f} s ({len(rows) / seconds:.2f}/s on {where}): '
-          + ', '.join(words) + (f', {failed} failed' if failed else ''))
-    return EXIT_INPUT if failed else 0
+    words += [f'{failed} failed'] if failed else []
+    skipped = batch.skipped
+    words += [f'{skipped} workbook{"s" if skipped != 1 else ""} skipped'] if skipped else []
+    print(f'{len(rows)} recording{"s" if len(rows) != 1 else ""} in {seconds:.1f} s '
+          f'({len(rows) / seconds:.2f}/s on {where}): ' + ', '.join(words))
+    # Nothing analysed (only workbooks) is no audit either.
+    return EXIT_INPUT if failed or not any(r['ok'] for r in rows) else 0
 
 
 @pipe_safe

@@ -51,6 +51,8 @@ def key_values(report):
     kv = [('detected', st['detected']), ('answer', st.get('answer')),
           ('probability', st.get('probability')), ('score', f'{st["score"]:.3f}'),
           ('apparent_S', st.get('apparent_S')), ('samples', report['samples'])]
+    if st.get('size_caution'):
+        kv.append(('size_caution', st['size_caution']))
     for f in report['fits']:
         kv += [(f'{f["model"]}.S', f'{f["S"]:.2f}'), (f'{f["model"]}.J', f'{f["J"]:.2f}'),
                (f'{f["model"]}.mse', f'{f["mse"]:.5g}')]

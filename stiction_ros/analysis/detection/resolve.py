@@ -204,5 +204,7 @@ def cycle_judgeable(oscillating: bool, period_s: float | None,
                          f'under-sampled: the loop cycles every {period_s:.4g} s, only '
                          f'{period_s / sample_time:.1f} samples of {sample_time:g} s; stick-slip '
                          f'in it cannot be resolved (at least {MIN_PERIOD_SAMPLES:g} samples a '
-                         f'cycle: record at {period_s / MIN_PERIOD_SAMPLES:.3g} s or faster)')
+                         f'cycle: record at {period_s / MIN_PERIOD_SAMPLES:.3g} s or faster, or '
+                         'faster still: at this sampling the true cycle may alias to a longer '
+                         'one)')
     return Judgeable(True)
