@@ -167,6 +167,15 @@ def test_a_workbook_in_a_folder_is_listed_as_skipped_with_the_fix(tmp_path):
     assert run.stdout.splitlines()[-1].endswith(': 1 workbook skipped')
 
 
+def test_without_pv_the_cycle_is_read_from_op(sticky_loop, tmp_path):
+    # OP cycles with the loop: the caution needs no PV.
+    rows = {c: np.asarray(v)[::25] for c, v in sticky_loop.items()
+            if np.ndim(v) == 1 and c != 'pv'}
+    write_csv(tmp_path / 'no_pv.csv', rows, columns=('t', 'op', 'mv', 'sp'))
+    rep = analyze_file(AnalyzeOptions(input=str(tmp_path / 'no_pv.csv'))).report
+    assert 'read low' in rep['stiction']['size_caution']
+
+
 def test_a_given_size_gets_no_caution_and_no_invented_range(sticky_loop, tmp_path):
     rows = {c: np.asarray(v)[::25] for c, v in sticky_loop.items() if np.ndim(v) == 1}
     write_csv(tmp_path / 'given.csv', rows)

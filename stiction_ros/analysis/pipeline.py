@@ -15,7 +15,7 @@ import numpy as np
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, judgeable
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
-from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES
+from stiction_ros.analysis.oscillation import detect_oscillation, MIN_PERIOD_SAMPLES
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine
 
@@ -254,16 +254,36 @@ def analyze(record: Record, options: Options | None = None,
     report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']
-    if fitted and win is not None:
-        caution = sampling_caution(held, osc, record.sample_time,
-                                   bool(report['stiction']['detected']))
+    if fitted:
+        sticks = bool(report['stiction']['detected'])
+        caution = (sampling_caution(held, osc, record.sample_time, sticks) if win is not None
+                   else valve_sampling_caution(record, sticks))
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes
     return analysis
 
 
-def sampling_caution(held: dict, osc, sample_time: float, sticks: bool) -> str:
+def valve_sampling_caution(record: Record, sticks: bool) -> str:
+    """
+    Return :func:`sampling_caution` for a record without PV: OP's own cycle, MV for PV.
+
+    OP cycles with the loop (a sticky valve's limit cycle is a sawtooth in
+    OP), so its period says how many samples a cycle holds; '' when no
+    stretch of OP and MV is long enough to tell.
+    """
+    stretches = record.segments(MIN_SIGNATURE_SAMPLES)
+    if not stretches or not record.has('mv'):
+        return ''
+    a, b = max(stretches, key=lambda r: r[1] - r[0])
+    op, mv = record.signals['op'][a:b], record.signals['mv'][a:b]
+    osc = detect_oscillation(op - np.mean(op), record.sample_time)
+    return sampling_caution({'op': op, 'pv': mv, 'sp': None}, osc, record.sample_time,
+                            sticks, 'MV')
+
+
+def sampling_caution(held: dict, osc, sample_time: float, sticks: bool,
+                     pv_name: str = 'PV') -> str:
     """
     Return why S and J fitted to MV cannot be trusted at this sampling, or ''.
 
@@ -273,10 +293,11 @@ def sampling_caution(held: dict, osc, sample_time: float, sticks: bool) -> str:
     cycle) fitted 4.71 % at 18 s and 2.89 % at 60 s, each 95 % range short
     of 5 %.  ``sticks``: the fits found stiction, so its band reads low;
     otherwise a band this sampling cannot resolve may have been missed.
+    ``pv_name``: what ``held['pv']`` holds (MV where the record has no PV).
     """
     if judgeable(held['op'], held['pv'], sample_time, held['sp']).code == 'under_sampled':
-        seen = ('OP and PV alternate from sample to sample (a cycle of 2-3 samples of '
-                f'{sample_time:g} s)')
+        seen = (f'OP and {pv_name} alternate from sample to sample (a cycle of 2-3 samples '
+                f'of {sample_time:g} s)')
     elif (osc is not None and osc.oscillating and osc.period_s
           and osc.period_s / sample_time < MIN_PERIOD_SAMPLES):
         seen = (f'the loop cycles every {osc.period_s:.4g} s, only '
