@@ -218,3 +218,25 @@ def test_the_signature_table_says_it_read_the_held_rows_the_detector_did_not():
     note = ' '.join(_signatures({}, 314))
     assert 'the 314 held rows included' in note and 'fresh rows only' in note
     assert 'the held row included' in ' '.join(_signatures({}, 1))
+
+
+def test_rows_a_historian_interpolated_are_named_and_read_as_they_are():
+    from stiction_ros.analysis.detection import detect
+    from stiction_ros.analysis.detection.interpolated import interpolated_rows
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    rec = simulate(draw_scenario(7, label=False))
+    op, pv, sp = (np.asarray(rec[k], float) for k in ('op', 'pv', 'sp'))
+    # A noisy loop lands on no midpoint, OP and PV together.
+    assert not interpolated_rows(op, pv).any()
+    # A historian storing every other sample fills the grid by straight lines.
+    lerp_op, lerp_pv = op.copy(), pv.copy()
+    inner = np.arange(1, len(op) - 1, 2)
+    lerp_op[inner] = 0.5 * (op[inner - 1] + op[inner + 1])
+    lerp_pv[inner] = 0.5 * (pv[inner - 1] + pv[inner + 1])
+    found = interpolated_rows(lerp_op, lerp_pv)
+    assert np.array_equal(np.flatnonzero(found), inner)
+    d = detect(lerp_op, lerp_pv, sp, float(draw_scenario(7, label=False).sample_time))
+    assert d.judge.ok and d.details['interpolated_rows'] == len(inner)
+    # Half the record: said right after what the detector leaned on.
+    assert d.evidence[0].startswith('the learned detector leaned most on')
+    assert d.evidence[1].startswith(f'{len(inner)} of {len(op)} rows lie exactly midway')

@@ -2,8 +2,9 @@
 Stiction detection from OP, PV and SP: judge, measure, decide.
 
 Layers, each importing only those before it: :mod:`resolve` (can the record
-be judged; the period sanity rule), :mod:`stale` (historian holds),
-:mod:`stuck` (stuck periods and slips), :mod:`output_error` and
+be judged; the period sanity rule), :mod:`stale` and :mod:`interpolated`
+(historian holds and interpolated rows), :mod:`stuck` (stuck periods and
+slips), :mod:`output_error` and
 :mod:`prediction_error` (two fits of a sticky valve), :mod:`model_file`
 (plain-array files, read without pickle), :mod:`cnn` (the networks, run in
 NumPy), :mod:`features` (the scale-free feature vector), :mod:`stack` (the

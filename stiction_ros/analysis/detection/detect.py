@@ -17,6 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from stiction_ros.analysis.detection import cnn, model_file, stack
+from stiction_ros.analysis.detection import interpolated
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
@@ -169,6 +170,13 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     if held.count:
         # A row or two held in 751 is routine; a third of the record is not.
         lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
+    lerped = interpolated.interpolated_rows(op, pv)
+    if lerped.any():
+        # Read as they are (a fair guess of the trend), but named: the noise reads low.
+        holds['interpolated_rows'] = int(lerped.sum())
+        top = 1 if held.count and held.share >= NOTABLE else 0
+        lines.insert(top if lerped.mean() >= NOTABLE else len(lines),
+                     interpolated.describe(lerped, sample_time))
     osc = ev['oscillation']
     judge = cycle_judgeable(osc.oscillating, osc.period_s, sample_time)
     if not judge.ok:
