@@ -15,7 +15,7 @@ healthy loops, see docs/ACCURACY.md).  The weights and the threshold are the one
 cross-validated accuracy on the real plant loops is in ``docs/ACCURACY.md``.
 """
 
-from stiction_ros.analysis.signatures.ellipse import MAX_RESIDUAL
+from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
 MIN_S = 0.2
 MIN_IMPROVEMENT = 0.5
@@ -80,8 +80,7 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None):
     ell = sigs.get('ellipse')
     sized = detection is None or (detection.judge.ok and not detection.period_problem)
     # A PV-OP map that is no ellipse has a width, but not one of a valve's band.
-    if (ell is not None and ell.value is not None and sized
-            and ell.details.get('fit_residual', 0.0) <= MAX_RESIDUAL):
+    if ell is not None and ell.value is not None and sized and not no_ellipse(ell):
         apparent = ell.value
     extra = {}
     if fits:

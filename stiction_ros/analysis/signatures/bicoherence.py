@@ -57,7 +57,7 @@ import numpy as np
 
 from stiction_ros.analysis.dsp import chi2_ppf, decimate, detrend_linear
 from stiction_ros.analysis.oscillation import as_signal
-from stiction_ros.analysis.signatures.ellipse import MAX_RESIDUAL
+from stiction_ros.analysis.signatures.ellipse import no_ellipse
 from stiction_ros.analysis.signatures.result import Signature
 
 REFERENCE = ('Choudhury, M.A.A.S., Shah, S.L., Thornhill, N.F. (2004), Diagnosis of poor '
@@ -168,8 +168,8 @@ def hos_with_pv_op(nonlinearity, pv_op):
                'nonlinear': nl, 'apparent_stiction': pv_op.value,
                'apparent_stiction_threshold': pv_op.threshold}
     # A map the ellipse test rejects sizes nothing, so it cannot vote either way.
-    no_ellipse = pv_op.details.get('fit_residual', 0.0) > MAX_RESIDUAL
-    wide = None if pv_op.value is None or pv_op.threshold is None or no_ellipse else (
+    rejected = no_ellipse(pv_op)
+    wide = None if pv_op.value is None or pv_op.threshold is None or rejected else (
         pv_op.value >= pv_op.threshold)
     if nl is None:
         verdict, reason = None, f'bicoherence undetermined: {nonlinearity.reason}'
@@ -177,7 +177,7 @@ def hos_with_pv_op(nonlinearity, pv_op):
         verdict, reason = False, f'no valve nonlinearity: {nonlinearity.reason}'
     elif wide is None:
         verdict, reason = None, f'nonlinear, but PV-OP map undetermined: {pv_op.reason}'
-        if no_ellipse:
+        if rejected:
             details['apparent_stiction'] = None
     elif wide:
         verdict, reason = True, (f'nonlinear loop and PV-OP ellipse: apparent stiction '
@@ -185,6 +185,6 @@ def hos_with_pv_op(nonlinearity, pv_op):
     else:
         verdict, reason = False, (f'nonlinear loop but thin PV-OP map: apparent stiction '
                                   f'{pv_op.value:.3g} % < {pv_op.threshold:.3g} %')
-    return Signature('hos_pv_op', None if no_ellipse else pv_op.value, pv_op.threshold,
+    return Signature('hos_pv_op', None if rejected else pv_op.value, pv_op.threshold,
                      verdict, reason,
                      REFERENCE + '; ' + pv_op.reference, details, {})

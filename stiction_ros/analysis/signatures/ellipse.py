@@ -49,6 +49,11 @@ MAX_RESIDUAL = 0.25
 LINE_CORRELATION = 0.999
 
 
+def no_ellipse(sig: Signature) -> bool:
+    """Return whether the PV-OP map of an :func:`ellipse` result fitted no ellipse (no size)."""
+    return sig.details.get('fit_residual', 0.0) > MAX_RESIDUAL
+
+
 def fit_ellipse(x, y):
     """
     Return the conic ``[a, b, c, d, e, f]`` of the direct least-squares ellipse through (x, y).
