@@ -18,6 +18,7 @@ import re
 import time
 
 from stiction_ros._threads import one_blas_thread
+from stiction_ros.analysis.readers.sniff import AS_CSV
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
 from stiction_ros.app.progress import Step
@@ -104,8 +105,8 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
     row = {'input': str(path), 'ok': False}
     if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
         # Listed so that it is not lost without a word; not read, so not a failure.
-        row.update(skipped=True, error=f'{path}: a workbook, not read: save its sheet as CSV '
-                   '(File > Save As > CSV UTF-8) to include it')
+        row.update(skipped=True,
+                   error=f'{path}: a workbook, not read: save its sheet {AS_CSV} to include it')
         row['seconds'] = round(time.perf_counter() - t0, 3)
         return row
     try:

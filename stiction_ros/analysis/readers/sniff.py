@@ -18,8 +18,9 @@ from stiction_ros.errors import InputError
 
 ZIP = b'PK\x03\x04'
 OLE2 = b'\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1'
-EXCEL = ('is an Excel workbook: save the sheet as CSV (File > Save As > CSV UTF-8) and pass '
-         'that file')
+# The fix for any workbook, here and in a batch that lists one it will not read.
+AS_CSV = 'as CSV (File > Save As > CSV UTF-8)'
+EXCEL = f'is an Excel workbook: save the sheet {AS_CSV} and pass that file'
 ODS_TYPE = b'application/vnd.oasis.opendocument.spreadsheet'
 
 
