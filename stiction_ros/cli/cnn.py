@@ -6,6 +6,7 @@ Train the detector's 1-D CNN on simulated loops (``make cnn``; needs PyTorch).
                                    [--hidden H] [--dilations D,D,...] [--corpus-file F]
                                    [--first-seed S] [--without-deadband-like]
                                    [--init FILE] [--peak-lr LR]
+                                   [--hard-negatives FIRST-LAST]
 
 Simulates the network's own corpus (seeds from 2000000, never used by the
 detector's training, calibration or scoring sets), trains the network and
@@ -18,7 +19,9 @@ it learns).  The shape options default to the shipped networks' (with
 ``--init``, to the starting network's); the header of the weights keeps the
 shape.  ``--init`` continues from the weights of a
 network (``--first-seed``: on a corpus of other seeds); the header names the
-starting file.  After each epoch the network so far is kept beside the
+starting file.  ``--hard-negatives`` (with ``--init``) adds the healthy
+records of another seed range that the starting network calls sticky.
+After each epoch the network so far is kept beside the
 output as ``NAME.partial.npz`` (its header says how many epochs it had), and
 removed when the output is written: a run stopped by a time limit keeps
 what it learned.  Real plant loops are never read.
@@ -72,7 +75,20 @@ def parser() -> argparse.ArgumentParser:
                    help='start from the weights of this network (same shape), not at random')
     p.add_argument('--peak-lr', type=float, default=PEAK_LR,
                    help='peak of the one-cycle learning rate (default: %(default)s)')
+    p.add_argument('--hard-negatives', type=_seed_range, metavar='FIRST-LAST',
+                   help='with --init: add the healthy records of these seeds that the starting '
+                        'network calls sticky (whole record, logit above 0)')
     return p
+
+
+def _seed_range(text: str) -> range:
+    try:
+        a, b = (int(v) for v in text.split('-'))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'not a seed range FIRST-LAST: {text!r}')
+    if a < 0 or b < a:
+        raise argparse.ArgumentTypeError(f'not a seed range FIRST-LAST: {text!r}')
+    return range(a, b + 1)
 
 
 def _dilations(text: str) -> tuple:
@@ -132,13 +148,19 @@ def main(argv=None) -> int:
               'in (0, 1)', file=sys.stderr)
         return 2
     seeds = range(args.first_seed, args.first_seed + args.seeds)
-    for name in ('TRAIN', 'CALIBRATION', 'TEST'):
-        used = getattr(dataset, name)
-        if seeds.start < used.stop and used.start < seeds.stop:
-            print(f'stiction-cnn: error: seeds {seeds.start}-{seeds.stop - 1} overlap the '
-                  f"detector's {name.lower()} seeds {used.start}-{used.stop - 1}",
-                  file=sys.stderr)
-            return 2
+    hard = args.hard_negatives
+    for drawn in (seeds, hard or range(0)):
+        for name in ('TRAIN', 'CALIBRATION', 'TEST'):
+            used = getattr(dataset, name)
+            if drawn and drawn.start < used.stop and used.start < drawn.stop:
+                print(f'stiction-cnn: error: seeds {drawn.start}-{drawn.stop - 1} overlap the '
+                      f"detector's {name.lower()} seeds {used.start}-{used.stop - 1}",
+                      file=sys.stderr)
+                return 2
+    if hard and (not args.init or (hard.start < seeds.stop and seeds.start < hard.stop)):
+        print('stiction-cnn: error: --hard-negatives needs --init (the network that finds '
+              'them) and seeds apart from the corpus', file=sys.stderr)
+        return 2
     init = None
     if args.init:
         try:
@@ -158,7 +180,7 @@ def main(argv=None) -> int:
               '.venv/bin/pip install -r requirements/train.txt', file=sys.stderr)
         return 2
     from stiction_ros.analysis.detection.cnn_train import corpus, corpus_file, export_error, \
-        to_model, train_cnn
+        hard_negatives, join, to_model, train_cnn
 
     def say(m):
         print(m, file=sys.stderr, flush=True)
@@ -173,6 +195,11 @@ def main(argv=None) -> int:
             return 2
     else:
         data = corpus(seeds, args.jobs, say, args.without_deadband_like)
+    if hard:
+        say(f'hard negatives: healthy records of seeds {hard.start}-{hard.stop - 1} that '
+            f'{Path(args.init).name} calls sticky')
+        extra = hard_negatives(corpus(hard, args.jobs, say, healthy_only=True), init, say=say)
+        data = join(data, extra)
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')
     check = corpus(dataset.CALIBRATION, args.jobs, say)
@@ -181,6 +208,9 @@ def main(argv=None) -> int:
     meta = {'version': cnn.VERSION, 'file': Path(args.out).name,
             'corpus_seeds': [seeds.start, seeds.stop], 'records': int(len(data['y'])),
             'without_deadband_like': bool(args.without_deadband_like),
+            'hard_negatives': (None if not hard else
+                               {'seeds': [hard.start, hard.stop], 'logit_above': 0.0,
+                                'records': int(len(extra['y']))}),
             'init': (None if init is None else
                      {'file': Path(args.init).name, 'sha256': init.sha256}),
             'sticky_share': round(float(data['y'].mean()), 4),

@@ -58,11 +58,13 @@ class Arch:
 ARCH = Arch()
 
 
-def _record(seed: int, without_deadband_like: bool = False):
+def _record(seed: int, without_deadband_like: bool = False, healthy_only: bool = False):
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
     from stiction_ros.analysis.detection.resolve import judgeable
     from stiction_ros.sim.corpus import draw_scenario, simulate
     sc = draw_scenario(seed)
+    if healthy_only and sc.label:
+        return None
     rec = simulate(sc)
     if sc.label and stiction_footprint(sc, rec) < MIN_FOOTPRINT:
         return None
@@ -76,16 +78,20 @@ def _record(seed: int, without_deadband_like: bool = False):
     return seed, channels(rec['op'], rec['pv'], rec['sp']), bool(sc.label), bool(sc.integrating)
 
 
-def corpus(seeds, jobs: int = 2, say=print, without_deadband_like: bool = False) -> dict:
+def corpus(seeds, jobs: int = 2, say=print, without_deadband_like: bool = False,
+           healthy_only: bool = False) -> dict:
     """
     Return the network inputs of ``seeds``: ``x`` (5, total) with record offsets ``off``.
 
     ``without_deadband_like``: leave out the sticky records whose slip moves
     PV by less than its noise against the nearest deadband, as the detector's
-    scoring and calibration do (:mod:`deadband_like`).
+    scoring and calibration do (:mod:`deadband_like`).  ``healthy_only``:
+    leave out every sticky record (before it is simulated), for
+    :func:`hard_negatives`.
     """
     t0, recs = time.perf_counter(), []
-    draw = partial(_record, without_deadband_like=without_deadband_like)
+    draw = partial(_record, without_deadband_like=without_deadband_like,
+                   healthy_only=healthy_only)
     with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
         for i, r in enumerate(pool.map(draw, seeds, chunksize=64), 1):
             if r is not None:
@@ -106,6 +112,50 @@ def corpus(seeds, jobs: int = 2, say=print, without_deadband_like: bool = False)
             'x': np.concatenate([r[1] for r in recs], axis=1),
             'off': np.concatenate([[0], np.cumsum(lengths)]),
             'y': np.array([r[2] for r in recs]), 'integ': np.array([r[3] for r in recs])}
+
+
+def take(data: dict, keep: np.ndarray) -> dict:
+    """Return the records of corpus ``data`` where the boolean ``keep`` is true."""
+    idx = np.flatnonzero(keep)
+    off = data['off']
+    parts = [data['x'][:, off[i]:off[i + 1]] for i in idx]
+    lengths = np.array([p.shape[1] for p in parts], dtype=np.int64)
+    return {'seed': data['seed'][idx],
+            'x': (np.concatenate(parts, axis=1) if parts
+                  else np.empty((data['x'].shape[0], 0), dtype=data['x'].dtype)),
+            'off': np.concatenate([[0], np.cumsum(lengths)]).astype(off.dtype),
+            'y': data['y'][idx], 'integ': data['integ'][idx]}
+
+
+def join(a: dict, b: dict) -> dict:
+    """Return corpus ``a`` followed by corpus ``b``."""
+    return {'seed': np.concatenate([a['seed'], b['seed']]),
+            'x': np.concatenate([a['x'], b['x']], axis=1),
+            'off': np.concatenate([a['off'], a['off'][-1] + b['off'][1:]]),
+            'y': np.concatenate([a['y'], b['y']]),
+            'integ': np.concatenate([a['integ'], b['integ']])}
+
+
+def hard_negatives(data: dict, net: CnnModel, threshold: float = 0.0, say=print) -> dict:
+    """
+    Return the healthy records of ``data`` that ``net`` calls sticky (logit above ``threshold``).
+
+    The whole record is read once, its signs as recorded (NumPy, no
+    PyTorch).  Added to a corpus, they are the look-alikes (backlash,
+    sluggish loops under load steps, quantised valves) the starting network
+    gets wrong, which a corpus drawn as every other one holds few of.
+    """
+    t0, off = time.perf_counter(), data['off']
+    z = np.full(len(data['y']), -np.inf)
+    for i in np.flatnonzero(~data['y']):
+        z[i] = net.logit(data['x'][:, off[i]:off[i + 1]], bool(data['integ'][i]))
+        if (i + 1) % 5000 == 0:
+            say(f'  hard negatives: {i + 1}/{len(z)} records read '
+                f'({time.perf_counter() - t0:.0f} s)')
+    out = take(data, z > threshold)
+    say(f'  hard negatives: {len(out["y"])} of {int((~data["y"]).sum())} healthy records '
+        f'read as sticky ({time.perf_counter() - t0:.0f} s)')
+    return out
 
 
 def corpus_file(seeds, path: str | Path, jobs: int = 2, say=print,
