@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy robustness detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -52,6 +52,13 @@ PINNED := $(if $(filter x86_64 amd64,$(shell uname -m)),NPY_DISABLE_CPU_FEATURES
 accuracy: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
+
+# The verdict on simulated loops read through a damped transmitter, skewed clocks,
+# historian compression and a coarser grid, beside the same loops as simulated
+# (docs/ROBUSTNESS.md; about 20 min on 2 cores).
+robustness: venv
+	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
+	  --json docs/robustness.json
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
 # stiction_ros/resources/stiction_detector.npz.  About 11-14 min on 2 cores from scratch
