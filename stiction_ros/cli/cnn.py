@@ -198,7 +198,12 @@ def main(argv=None) -> int:
     if hard:
         say(f'hard negatives: healthy records of seeds {hard.start}-{hard.stop - 1} that '
             f'{Path(args.init).name} calls sticky')
-        extra = hard_negatives(corpus(hard, args.jobs, say, healthy_only=True), init, say=say)
+        try:
+            extra = hard_negatives(corpus(hard, args.jobs, say, healthy_only=True), init,
+                                   say=say)
+        except ValueError as err:
+            print(f'stiction-cnn: error: {err}', file=sys.stderr)
+            return 2
         data = join(data, extra)
     say(f'check set: calibration seeds {dataset.CALIBRATION.start}-'
         f'{dataset.CALIBRATION.stop - 1} (reported, not used)')

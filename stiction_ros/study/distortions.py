@@ -27,8 +27,10 @@ def lag_filter(x: np.ndarray, tau_samples: float) -> np.ndarray:
     """
     Return ``x`` through a first-order lag of ``tau_samples`` (a transmitter's damping).
 
-    Discretised exactly for a signal held between samples, started at rest on
-    the first sample, so a constant passes unchanged.
+    ``y[k] = a y[k-1] + (1 - a) x[k]`` with ``a = exp(-1 / tau_samples)``: the
+    lag of a sensor averaging continuously, read at each sample with no added
+    sample of delay; started at rest on the first sample, so a constant
+    passes unchanged.
     """
     if tau_samples <= 0:
         raise ValueError(f'a lag needs a positive time constant, not {tau_samples}')

@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 
 from stiction_ros._threads import one_blas_thread
+from stiction_ros.analysis.detection.detect import THRESHOLD
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.distortions import compress, every, lag_filter, shift_pv, Trend
 
@@ -82,13 +83,17 @@ def _read(seed: int) -> tuple:
         return int(seed), bool(sc.label), kind, False, []
     trend = Trend(rec['op'], rec['pv'], rec['sp'], sc.sample_time)
     out = []
-    for _, _, distort in CONDITIONS:
+    for name, _, distort in CONDITIONS:
         t = distort(trend, sc.noise_std)
-        d = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating)
+        try:
+            d = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating)
+        except Exception as exc:
+            # An analyzer failure is the finding: say which record and condition.
+            raise RuntimeError(f'the analyzer failed on seed {seed}, {name}: {exc!r}') from exc
         if d.probability is None and not out:
             # Not judgeable as simulated: not a record make accuracy scores.
             return int(seed), bool(sc.label), kind, False, []
-        out.append((d.answer, d.probability, '' if d.probability is not None else d.judge.code))
+        out.append((d.answer, d.probability, d.judge.code if d.probability is None else ''))
     return int(seed), bool(sc.label), kind, True, out
 
 
@@ -112,8 +117,9 @@ class Robustness:
 
     def _row(self, j: int) -> dict:
         y, p, a = self.label, self.probability[:, j], self.answer[:, j]
-        forced = np.nan_to_num(p, nan=0.0) >= 0.5
-        ref = np.nan_to_num(self.probability[:, 0], nan=0.0) >= 0.5
+        # The probability as the analyzer reports it (4 decimals), at make accuracy's 0.5.
+        forced = np.nan_to_num(p, nan=0.0) >= THRESHOLD
+        ref = np.nan_to_num(self.probability[:, 0], nan=0.0) >= THRESHOLD
         c = confusion(y, forced)
         told = a != 'cannot tell'
         banded = confusion(y, a == 'stiction')
@@ -130,10 +136,12 @@ class Robustness:
                 'median_shift_sticky': _median_shift(p, self.probability[:, 0], y)}
 
     def to_json(self) -> dict:
-        """Return the study as plain JSON types."""
+        """Return the study as plain JSON types (an undefined figure as None)."""
+        rows = [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()}
+                for r in self.rows]
         return {'seeds': [self.seeds.start, self.seeds.stop], 'records': int(len(self.label)),
                 'sticky': int(self.label.sum()), 'unscored': self.unscored,
-                'seconds': round(self.seconds, 1), 'rows': self.rows}
+                'seconds': round(self.seconds, 1), 'rows': rows}
 
 
 def _median_shift(p: np.ndarray, ref: np.ndarray, sel: np.ndarray) -> float:

@@ -20,6 +20,7 @@ import numpy as np
 from stiction_ros._blas import kernels
 from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
+from stiction_ros.analysis.detection.interpolated import lines_judgeable
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable
 from stiction_ros.analysis.verdict import from_signatures
@@ -86,6 +87,8 @@ def featurize_seed(seed: int) -> tuple:
     op, pv, sp, held = drop_held(rec['op'], rec['pv'], rec['sp'])
     judge = holds_judgeable(held, sc.sample_time)
     if judge.ok:
+        judge = lines_judgeable(pv)
+    if judge.ok:
         judge = judgeable(op, pv, sc.sample_time, sp)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False
@@ -105,7 +108,7 @@ SOURCES = ('_blas.py', 'analysis/dsp.py', 'analysis/detection/features.py',
            'analysis/detection/cnn.py', 'resources/stiction_cnn.npz',
            'analysis/detection/output_error.py', 'analysis/detection/prediction_error.py',
            'analysis/detection/resolve.py', 'analysis/detection/dataset.py',
-           'analysis/detection/stale.py',
+           'analysis/detection/stale.py', 'analysis/detection/interpolated.py',
            'analysis/oscillation.py', 'analysis/hammerstein', 'analysis/fit_core.py',
            'analysis/verdict.py', 'analysis/signatures', 'kernels', 'sim', 'models')
 

@@ -161,6 +161,8 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     holds = {'held_rows': held.count} if held.count else {}
     judge = holds_judgeable(held, sample_time)
     if judge.ok:
+        judge = interpolated.lines_judgeable(pv)
+    if judge.ok:
         judge = judgeable(op, pv, sample_time, sp)
     if not judge.ok:
         return Detection('cannot tell', None, judge.reason, judge, model=info, details=holds)

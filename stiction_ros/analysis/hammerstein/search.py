@@ -169,15 +169,15 @@ class Search:
             if not inside:
                 # An exact fit (SSE ~1e-23, a PV late against OP lets the model
                 # fit the controller's own law) rescores above its own bound by
-                # rounding: the region is the optimum alone.
-                inside = [min(scored, key=lambda p: p[0])]
+                # rounding: the region is the optimum alone (S and J are on the axes).
+                inside = [best]
             lo_s, hi_s = min(p[1] for p in inside), max(p[1] for p in inside)
             lo_j, hi_j = min(p[2] for p in inside), max(p[2] for p in inside)
             if not ((lo_s == s_ax[0] > 0.0) or (hi_s == s_ax[-1] < self.s_max)
                     or (lo_j == j_ax[0] > 0.0) or (hi_j == j_ax[-1] < self.j_max)):
                 break
             ws, wj = 2 * ws, 2 * wj
-        return [p for p in self.points if p[0] <= bound] or inside, steps
+        return [p for p in self.points if p[0] <= bound], steps
 
 
 def _best(points, keep, per_delay) -> list:
