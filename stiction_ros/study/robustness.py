@@ -15,14 +15,13 @@ refusal (``cannot tell``), as at run time.  Nothing is fitted or chosen
 here; the model is the shipped one.
 """
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 import time
 from typing import Callable
 
 import numpy as np
 
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import pool_map
 from stiction_ros.analysis.detection.detect import THRESHOLD
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.distortions import compress, every, lag_filter, shift_pv, Trend
@@ -152,15 +151,9 @@ def _median_shift(p: np.ndarray, ref: np.ndarray, sel: np.ndarray) -> float:
 def run(seeds: range, jobs: int = 1, say=None) -> Robustness:
     """Return the :class:`Robustness` of the simulated records of ``seeds``."""
     t0, got = time.perf_counter(), []
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
-            for i, r in enumerate(pool.map(_read, seeds, chunksize=10), 1):
-                got.append(r)
-                _tick(say, i, len(seeds), t0)
-    else:
-        for i, s in enumerate(seeds, 1):
-            got.append(_read(s))
-            _tick(say, i, len(seeds), t0)
+    for i, r in enumerate(pool_map(_read, seeds, jobs, chunksize=10), 1):
+        got.append(r)
+        _tick(say, i, len(seeds), t0)
     kept = [r for r in got if r[3]]
     if not kept:
         raise ValueError(f'no record of seeds {seeds.start}-{seeds.stop - 1} can be scored')

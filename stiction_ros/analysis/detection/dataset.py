@@ -9,7 +9,6 @@ are those whose stiction is hidden under PV's noise; records the band
 answers ``cannot tell`` for balanced evidence are kept.
 """
 
-from concurrent.futures import ProcessPoolExecutor
 import hashlib
 from pathlib import Path
 import sys
@@ -18,7 +17,7 @@ import time
 import numpy as np
 
 from stiction_ros._blas import kernels
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import pool_map
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.interpolated import lines_judgeable
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
@@ -157,15 +156,9 @@ def build(seeds: range, jobs: int = 1, progress: bool = True,
 def _compute(seeds: list, jobs: int, progress: bool) -> dict:
     out = []
     t0 = time.perf_counter()
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
-            for i, r in enumerate(pool.map(featurize_seed, seeds, chunksize=50), 1):
-                out.append(r)
-                _tick(progress, i, len(seeds), t0)
-    else:
-        for i, s in enumerate(seeds, 1):
-            out.append(featurize_seed(s))
-            _tick(progress, i, len(seeds), t0)
+    for i, r in enumerate(pool_map(featurize_seed, seeds, jobs, chunksize=50), 1):
+        out.append(r)
+        _tick(progress, i, len(seeds), t0)
     kept = [r for r in out if r[1] is not None]
     skipped = {}
     for r in out:
