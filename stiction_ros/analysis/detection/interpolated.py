@@ -22,7 +22,9 @@ judged (:func:`lines_judgeable`): most of its trend was drawn by a historian
 Read as measured, such records are called sticky far more often than they
 are (docs/ROBUSTNESS.md: 117 more of 886 healthy simulated loops flagged
 under compression).  PV alone is counted, since a compressing historian
-keeps each tag's points at its own times.  Chosen on training seeds 0-1499
+keeps each tag's points at its own times.  A simulated PV without noise
+can be read so too (a stuck valve before an integrator or a moving
+average draws exact lines), and the reason says so: no measured PV does.  Chosen on training seeds 0-1499
 only: as simulated, at most 23 % of PV's rows lie midway (a quantised PV
 stepping one quantum a row); compressed at two noise standard deviations,
 a median of 74 %.
@@ -85,5 +87,6 @@ def lines_judgeable(pv: np.ndarray) -> Judgeable:
                          f'{share:.0%} of the PV rows lie exactly on straight lines between '
                          'their neighbours: most of the trend was drawn by the historian '
                          '(a compressed or interpolated export), not measured; export the '
-                         'raw samples (compression off)')
+                         'raw samples (compression off). A simulation without measurement '
+                         'noise looks the same: add noise to its PV')
     return Judgeable(True)
