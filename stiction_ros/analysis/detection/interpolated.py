@@ -24,10 +24,10 @@ are (docs/ROBUSTNESS.md: 117 more of 886 healthy simulated loops flagged
 under compression).  PV alone is counted, since a compressing historian
 keeps each tag's points at its own times.  A simulated PV without noise
 can be read so too (a stuck valve before an integrator or a moving
-average draws exact lines), and the reason says so: no measured PV does.  Chosen on training seeds 0-1499
-only: as simulated, at most 23 % of PV's rows lie midway (a quantised PV
-stepping one quantum a row); compressed at two noise standard deviations,
-a median of 74 %.
+average draws exact lines), and the reason says so: no measured PV does.
+Chosen on training seeds 0-1499 only: as simulated, at most 23 % of PV's
+rows lie midway (a quantised PV stepping one quantum a row); compressed at
+two noise standard deviations, a median of 74 %.
 """
 
 import numpy as np
