@@ -26,7 +26,7 @@ from stiction_ros.analysis.detection.detect import THRESHOLD
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.distortions import compress, every, lag_filter, shift_pv, Trend
 
-# Each condition: (name, what it stands for, the distortion of (trend, PV noise SD)).
+# A distortion of (trend, PV noise SD).
 Distortion = Callable[[Trend, float], Trend]
 
 
@@ -55,7 +55,8 @@ def _coarse(t: Trend, noise: float) -> Trend:
     return every(t, 2)
 
 
-CONDITIONS: tuple = (
+# Each condition: (name, what it stands for, its distortion).
+CONDITIONS: tuple[tuple[str, str, Distortion], ...] = (
     ('as simulated', 'the reference', _as_is),
     ('PV damped', "PV through a first-order lag of 3 samples (a transmitter's damping)",
      _damped),
@@ -69,7 +70,7 @@ CONDITIONS: tuple = (
 
 
 def _read(seed: int) -> tuple:
-    """Return (seed, label, kind, scored, [(answer, probability, code) per condition])."""
+    """Return (seed, label, kind, scored, [(answer, probability) per condition])."""
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
     from stiction_ros.analysis.detection.deadband_like import slip_footprint
     from stiction_ros.analysis.detection.detect import detect
@@ -92,7 +93,7 @@ def _read(seed: int) -> tuple:
         if d.probability is None and not out:
             # Not judgeable as simulated: not a record make accuracy scores.
             return int(seed), bool(sc.label), kind, False, []
-        out.append((d.answer, d.probability, d.judge.code if d.probability is None else ''))
+        out.append((d.answer, d.probability))
     return int(seed), bool(sc.label), kind, True, out
 
 
@@ -105,11 +106,10 @@ class Robustness:
     kind: np.ndarray
     answer: np.ndarray          # (records, conditions): the analyzer's three answers
     probability: np.ndarray     # (records, conditions); NaN where the record was not judged
-    refused: np.ndarray         # (records, conditions): not judgeable under the condition
     seconds: float
     unscored: int = 0
     seed: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    rows: list = field(default_factory=list)
+    rows: list = field(init=False)
 
     def __post_init__(self):
         self.rows = [self._row(j) for j in range(len(CONDITIONS))]
@@ -128,7 +128,7 @@ class Robustness:
                 'banded_balanced_accuracy': balanced_accuracy(banded),
                 'decided_balanced_accuracy': balanced_accuracy(decided),
                 'decided_share': float(told.mean()),
-                'refused': int(self.refused[:, j].sum()),
+                'refused': int(np.isnan(p).sum()),
                 'new_flags': int(np.sum(~y & forced & ~ref)),
                 'lost_finds': int(np.sum(y & ~forced & ref)),
                 'median_shift_healthy': _median_shift(p, self.probability[:, 0], ~y),
@@ -157,11 +157,10 @@ def run(seeds: range, jobs: int = 1, say=None) -> Robustness:
     kept = [r for r in got if r[3]]
     if not kept:
         raise ValueError(f'no record of seeds {seeds.start}-{seeds.stop - 1} can be scored')
-    ans = np.array([[a for a, _, _ in r[4]] for r in kept])
-    prob = np.array([[np.nan if q is None else q for _, q, _ in r[4]] for r in kept])
-    refused = np.array([[code != '' for _, _, code in r[4]] for r in kept])
+    ans = np.array([[a for a, _ in r[4]] for r in kept])
+    prob = np.array([[np.nan if q is None else q for _, q in r[4]] for r in kept])
     return Robustness(seeds, np.array([r[1] for r in kept]), np.array([r[2] for r in kept]),
-                      ans, prob, refused, time.perf_counter() - t0, len(got) - len(kept),
+                      ans, prob, time.perf_counter() - t0, len(got) - len(kept),
                       np.array([r[0] for r in kept], dtype=np.int64))
 
 
