@@ -79,9 +79,10 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
         assert r['tp'] + r['fn'] == int(study.label.sum())
     md, js = tmp_path / 'r.md', tmp_path / 'r.json'
     assert main(['--first-seed', '3600000', '--seeds', '6', '--jobs', '1',
-                 '--markdown', str(md), '--json', str(js)]) == 0
+                 '--skew-seeds', '30', '--markdown', str(md), '--json', str(js)]) == 0
     text = md.read_text()
     assert all(f'| {c[0]} |' in text for c in CONDITIONS)
+    assert "## How the clock-skew check's thresholds were chosen" in text
     assert json.loads(js.read_text())['seeds'] == [3_600_000, 3_600_006]
 
 

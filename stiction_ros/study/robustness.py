@@ -12,7 +12,9 @@ The records scored are those ``make accuracy`` scores: judgeable as
 simulated, stiction not hidden under PV's noise, sticky records not
 deadband-like.  A distorted record the analyzer cannot judge counts as a
 refusal (``cannot tell``), as at run time.  Nothing is fitted or chosen
-here; the model is the shipped one.
+here; the model is the shipped one.  A record the clock-skew check
+(:mod:`stiction_ros.analysis.detection.timing`) realigns is read again
+without it, so each row shows what the check bought.
 """
 
 from dataclasses import dataclass, field
@@ -55,22 +57,39 @@ def _coarse(t: Trend, noise: float) -> Trend:
     return every(t, 2)
 
 
-# Each condition: (name, what it stands for, its distortion).
-CONDITIONS: tuple[tuple[str, str, Distortion], ...] = (
-    ('as simulated', 'the reference', _as_is),
+def _late_one(t: Trend, noise: float) -> Trend:
+    return shift_pv(t, 1)
+
+
+def _coarse_late(t: Trend, noise: float) -> Trend:
+    return shift_pv(every(t, 2), 1)
+
+
+# Each condition: (name, what it stands for, its distortion, the rows it makes PV
+# late against OP: the skew the clock check should find, 0 for none).
+CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
+    ('as simulated', 'the reference', _as_is, 0),
     ('PV damped', "PV through a first-order lag of 3 samples (a transmitter's damping)",
-     _damped),
-    ('PV late', 'PV and SP 3 samples later than OP (a clock skew between two tags)', _late),
-    ('PV early', 'PV and SP 3 samples earlier than OP (OP logged late)', _early),
+     _damped, 0),
+    ('PV late', 'PV and SP 3 samples later than OP (a clock skew between two tags)', _late, 3),
+    ('PV early', 'PV and SP 3 samples earlier than OP (OP logged late)', _early, -3),
     ('compressed', 'OP and PV through a swinging-door historian (deviation: 2 noise SD of '
      "PV, 0.2 % of OP's range), exported as straight lines between kept points",
-     _compressed),
-    ('every second row', 'one row in two (twice the sample time)', _coarse),
+     _compressed, 0),
+    ('every second row', 'one row in two (twice the sample time)', _coarse, 0),
+    ('PV late 1', 'PV and SP 1 row later than OP', _late_one, 1),
+    ('every second row, PV late 1', 'one row in two, then PV and SP 1 row later than OP (the '
+     "controller's law holds only roughly on the coarser grid)", _coarse_late, 1),
 )
 
 
 def _read(seed: int) -> tuple:
-    """Return (seed, label, kind, scored, [(answer, probability) per condition])."""
+    """
+    Return (seed, label, kind, scored, [(answer, probability, shift) per condition], as given).
+
+    ``as given``: (answer, probability) of each condition read without the
+    clock-skew check (the same as with it where the check shifted nothing).
+    """
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
     from stiction_ros.analysis.detection.deadband_like import slip_footprint
     from stiction_ros.analysis.detection.detect import detect
@@ -80,21 +99,25 @@ def _read(seed: int) -> tuple:
     kind = sc.look_alike or sc.valve
     if sc.label and (stiction_footprint(sc, rec) < MIN_FOOTPRINT
                      or slip_footprint(sc, rec) < MIN_FOOTPRINT):
-        return int(seed), bool(sc.label), kind, False, []
+        return int(seed), bool(sc.label), kind, False, [], []
     trend = Trend(rec['op'], rec['pv'], rec['sp'], sc.sample_time)
-    out = []
-    for name, _, distort in CONDITIONS:
+    out, given = [], []
+    for name, _, distort, _ in CONDITIONS:
         t = distort(trend, sc.noise_std)
         try:
             d = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating)
+            shift = d.details.get('timing', {}).get('shift_rows', 0)
+            d0 = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating,
+                        realign=False) if shift else d
         except Exception as exc:
             # An analyzer failure is the finding: say which record and condition.
             raise RuntimeError(f'the analyzer failed on seed {seed}, {name}: {exc!r}') from exc
         if d.probability is None and not out:
             # Not judgeable as simulated: not a record make accuracy scores.
-            return int(seed), bool(sc.label), kind, False, []
-        out.append((d.answer, d.probability))
-    return int(seed), bool(sc.label), kind, True, out
+            return int(seed), bool(sc.label), kind, False, [], []
+        out.append((d.answer, d.probability, shift))
+        given.append((d0.answer, d0.probability))
+    return int(seed), bool(sc.label), kind, True, out, given
 
 
 @dataclass
@@ -106,6 +129,9 @@ class Robustness:
     kind: np.ndarray
     answer: np.ndarray          # (records, conditions): the analyzer's three answers
     probability: np.ndarray     # (records, conditions); NaN where the record was not judged
+    shift: np.ndarray           # (records, conditions): rows the clock-skew check realigned by
+    given_answer: np.ndarray    # the same two read without the check
+    given_probability: np.ndarray
     seconds: float
     unscored: int = 0
     seed: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
@@ -123,8 +149,15 @@ class Robustness:
         told = a != 'cannot tell'
         banded = confusion(y, a == 'stiction')
         decided = confusion(y[told], a[told] == 'stiction')
+        given = confusion(y, np.nan_to_num(self.given_probability[:, j], nan=0.0) >= THRESHOLD)
+        shifted, skew = self.shift[:, j], CONDITIONS[j][3]
         return {'condition': CONDITIONS[j][0], 'what': CONDITIONS[j][1],
                 'balanced_accuracy': balanced_accuracy(c), **c,
+                'realigned': int(np.sum(shifted != 0)),
+                'realigned_right': int(np.sum(shifted == skew)) if skew else 0,
+                'without_check_balanced_accuracy': balanced_accuracy(given),
+                'without_check_banded_balanced_accuracy': balanced_accuracy(
+                    confusion(y, self.given_answer[:, j] == 'stiction')),
                 'banded_balanced_accuracy': balanced_accuracy(banded),
                 'decided_balanced_accuracy': balanced_accuracy(decided),
                 'decided_share': float(told.mean()),
@@ -157,11 +190,14 @@ def run(seeds: range, jobs: int = 1, say=None) -> Robustness:
     kept = [r for r in got if r[3]]
     if not kept:
         raise ValueError(f'no record of seeds {seeds.start}-{seeds.stop - 1} can be scored')
-    ans = np.array([[a for a, _ in r[4]] for r in kept])
-    prob = np.array([[np.nan if q is None else q for _, q in r[4]] for r in kept])
+    ans = np.array([[c[0] for c in r[4]] for r in kept])
+    prob = np.array([[np.nan if c[1] is None else c[1] for c in r[4]] for r in kept])
+    shift = np.array([[c[2] for c in r[4]] for r in kept], dtype=np.int64)
+    ans0 = np.array([[c[0] for c in r[5]] for r in kept])
+    prob0 = np.array([[np.nan if c[1] is None else c[1] for c in r[5]] for r in kept])
     return Robustness(seeds, np.array([r[1] for r in kept]), np.array([r[2] for r in kept]),
-                      ans, prob, time.perf_counter() - t0, len(got) - len(kept),
-                      np.array([r[0] for r in kept], dtype=np.int64))
+                      ans, prob, shift, ans0, prob0, time.perf_counter() - t0,
+                      len(got) - len(kept), np.array([r[0] for r in kept], dtype=np.int64))
 
 
 def _tick(say, i: int, n: int, t0: float) -> None:

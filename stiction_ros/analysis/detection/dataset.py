@@ -22,6 +22,7 @@ from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.interpolated import lines_judgeable
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable
+from stiction_ros.analysis.detection.timing import alignment
 from stiction_ros.analysis.verdict import from_signatures
 
 # Stiction whose footprint on PV is below the noise (ratio) counts as hidden.
@@ -88,6 +89,8 @@ def featurize_seed(seed: int) -> tuple:
     if judge.ok:
         judge = lines_judgeable(pv)
     if judge.ok:
+        # As detect() reads it; no simulated record is skewed, so nothing moves.
+        op, pv, sp, _ = alignment(op, pv, sp).apply(op, pv, sp)
         judge = judgeable(op, pv, sc.sample_time, sp)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False
@@ -108,6 +111,7 @@ SOURCES = ('_blas.py', 'analysis/dsp.py', 'analysis/detection/features.py',
            'analysis/detection/output_error.py', 'analysis/detection/prediction_error.py',
            'analysis/detection/resolve.py', 'analysis/detection/dataset.py',
            'analysis/detection/stale.py', 'analysis/detection/interpolated.py',
+           'analysis/detection/timing.py',
            'analysis/oscillation.py', 'analysis/hammerstein', 'analysis/fit_core.py',
            'analysis/verdict.py', 'analysis/signatures', 'kernels', 'sim', 'models')
 

@@ -17,7 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from stiction_ros.analysis.detection import cnn, model_file, stack
-from stiction_ros.analysis.detection import interpolated
+from stiction_ros.analysis.detection import interpolated, timing
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
@@ -145,10 +145,13 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
 
 
 def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: float,
-           integrating: bool = False, model_path: str | None = None) -> Detection:
+           integrating: bool = False, model_path: str | None = None,
+           realign: bool = True) -> Detection:
     """
     Return the :class:`Detection` of one contiguous stretch of OP, PV (and SP).
 
+    ``realign=False`` reads a skewed record as given (``make robustness``
+    compares the two; the analyzer always realigns).
     Raises :class:`model_file.DetectorFileError` when the model file is
     missing or damaged (never a silent fallback).
     """
@@ -162,16 +165,27 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     judge = holds_judgeable(held, sample_time)
     if judge.ok:
         judge = interpolated.lines_judgeable(pv)
+    skew = None
     if judge.ok:
+        # Tags stamped on different clocks are realigned by the controller's own law.
+        skew = timing.alignment(op, pv, sp)
+        if not realign:
+            skew = timing.Alignment(0, skew.r2_as_given, skew.r2_best, skew.best)
+        op, pv, sp, kept = skew.apply(op, pv, sp)
+        holds['timing'] = skew.to_json()
         judge = judgeable(op, pv, sample_time, sp)
     if not judge.ok:
         return Detection('cannot tell', None, judge.reason, judge, model=info, details=holds)
     vec, ev = extract(op, pv, sp, sample_time, integrating)
     rows = held.kept if held.count else None
+    if skew.shift:
+        rows = kept if rows is None else rows[kept]
     lines = evidence_lines(ev, sample_time, rows)
     if held.count:
         # A row or two held in 751 is routine; a third of the record is not.
         lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
+    if skew.shift:
+        lines.insert(0, skew.describe(sample_time))
     lerped = interpolated.interpolated_rows(op, pv)
     if lerped.any():
         # Read as they are (a fair guess of the trend), but named: the noise reads low.

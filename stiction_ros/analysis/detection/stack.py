@@ -28,6 +28,7 @@ import numpy as np
 from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection import cnn
 from stiction_ros.analysis.detection.stale import drop_held
+from stiction_ros.analysis.detection.timing import alignment
 from stiction_ros.errors import DetectorFileError
 
 LARGE_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn_large.npz'
@@ -66,11 +67,12 @@ def large_logit(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
 
 
 def _seed_logit(seed: int) -> float:
-    # As dataset.featurize_seed reads a record: simulated, held rows dropped.
+    # As dataset.featurize_seed reads a record: simulated, held rows dropped, realigned.
     from stiction_ros.sim.corpus import draw_scenario, simulate
     sc = draw_scenario(int(seed))
     rec = simulate(sc)
     op, pv, sp, _ = drop_held(rec['op'], rec['pv'], rec['sp'])
+    op, pv, sp, _ = alignment(op, pv, sp).apply(op, pv, sp)
     return large_logit(op, pv, sp, sc.integrating)
 
 
