@@ -63,7 +63,7 @@ def test_too_few_rows_inside_ops_range_is_no_check_at_all():
     a = alignment(op, pv, None)
     assert not a.checked and a.shift == 0
     assert a.to_json() == {'shift_rows': 0, 'law_r2_as_given': None, 'law_r2_best': None,
-                           'best_shift_rows': 0}
+                           'best_shift_rows': 0, 'not_realigned_because': None}
 
 
 def test_a_coarser_export_still_shows_a_one_row_skew():
@@ -94,6 +94,49 @@ def test_the_detector_reads_a_skewed_record_as_the_record_its_controller_saw():
     assert not any('late against OP' in line for line in as_given.evidence)
 
 
+def test_empty_short_or_gappy_records_are_no_check_and_no_crash():
+    assert np.isnan(law_r2(np.empty(0), np.empty(0), None, 0))
+    assert not alignment(np.empty(0), np.empty(0), None).checked
+    _, t = _loop(26)
+    pv = shift_pv(t, 2).pv.copy()
+    op = shift_pv(t, 2).op
+    pv[100:110] = np.nan                               # a gap: its rows leave the fit
+    a = alignment(op, pv, None)
+    assert a.shift == 2 and a.r2_best > 0.99
+
+
+def test_a_skew_in_a_record_with_held_rows_is_named_but_not_made():
+    # Once held rows are dropped, rows are no longer evenly spaced in time.
+    from stiction_ros.analysis.detection.detect import detect
+    sc, t = _loop(26)
+    s = shift_pv(t, 2)
+    op, pv = s.op.copy(), s.pv.copy()
+    for i in range(50, 700, 50):                       # a historian's repeats in both tags
+        op[i], pv[i] = op[i - 1], pv[i - 1]
+    d = detect(op, pv, s.sp, t.sample_time, sc.integrating)
+    timing = d.details['timing']
+    assert timing['shift_rows'] == 0 and timing['best_shift_rows'] == 2
+    assert 'held rows' in timing['not_realigned_because']
+    assert any('PV looks 2 rows (20 s) late against OP' in line and 'read as exported' in line
+               for line in d.evidence)
+
+
+def test_the_stiction_size_reads_the_record_the_verdict_read():
+    from stiction_ros.analysis.detection.detect import detect
+    from stiction_ros.analysis.pipeline import realigned
+    sc, t = _loop(26)
+    s = shift_pv(t, 3)
+    held = {'op': s.op, 'pv': s.pv, 'sp': s.sp}
+    d = detect(s.op, s.pv, s.sp, t.sample_time, sc.integrating)
+    x = realigned(held, d)
+    n = len(t.op)
+    np.testing.assert_array_equal(x['pv'], t.pv[3:n - 3])
+    np.testing.assert_array_equal(x['op'], t.op[3:n - 3])
+    as_given = detect(s.op, s.pv, s.sp, t.sample_time, sc.integrating, realign=False)
+    assert realigned(held, as_given) is held
+
+
+@pytest.mark.slow
 def test_the_shipped_thresholds_are_the_ones_the_training_records_choose():
     from stiction_ros.study.skew import choose, MAX_FALSE
     choice = choose(range(0, 1500), jobs=2)

@@ -13,6 +13,7 @@ import re
 import numpy as np
 
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, judgeable
+from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
 from stiction_ros.analysis.oscillation import detect_oscillation, MIN_PERIOD_SAMPLES
@@ -190,6 +191,15 @@ def run_hammerstein(held, sample_time, integrating):
     return quantify(held['op'], held['pv'], sample_time, integrating=integrating)
 
 
+def realigned(held, detection):
+    """Return the signals as the detection read them: PV shifted against OP by its skew."""
+    shift = detection.details.get('timing', {}).get('shift_rows', 0)
+    if not shift:
+        return held
+    op, pv, sp, _ = Alignment(shift, 1.0, 1.0, shift).apply(held['op'], held['pv'], held['sp'])
+    return {**held, 'op': op, 'pv': pv, 'sp': sp}
+
+
 def run_detection(record, win, held, integrating, model_path=None):
     """Return the :class:`Detection` on the signatures' stretch (cannot tell without one)."""
     if win is None:
@@ -250,7 +260,7 @@ def analyze(record: Record, options: Options | None = None,
             and detection.judge.ok and not detection.period_problem):
         # Sizing needs what judging needs, and a resolvable cycle if there is
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
-        ham = run_hammerstein(held, record.sample_time, integrating)
+        ham = run_hammerstein(realigned(held, detection), record.sample_time, integrating)
     report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']

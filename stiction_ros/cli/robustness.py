@@ -133,8 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
     if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0 or args.skew_seeds < 0:
-        print('stiction-robustness: error: at least 1 seed and 1 job, a first seed of 0 or '
-              'more', file=sys.stderr)
+        print('stiction-robustness: error: at least 1 seed and 1 job, a first seed and '
+              '--skew-seeds of 0 or more', file=sys.stderr)
         return 2
     from stiction_ros.study.robustness import run
     from stiction_ros.study.skew import choose

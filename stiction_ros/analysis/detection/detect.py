@@ -169,6 +169,9 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     if judge.ok:
         # Tags stamped on different clocks are realigned by the controller's own law.
         skew = timing.alignment(op, pv, sp)
+        if held.count:
+            # The rows read are no longer evenly spaced: a row count is not a time.
+            skew = skew.decline('the historian held rows, so rows are not evenly spaced')
         if not realign:
             skew = timing.Alignment(0, skew.r2_as_given, skew.r2_best, skew.best)
         op, pv, sp, kept = skew.apply(op, pv, sp)
@@ -184,7 +187,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     if held.count:
         # A row or two held in 751 is routine; a third of the record is not.
         lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
-    if skew.shift:
+    if skew.describe(sample_time):
         lines.insert(0, skew.describe(sample_time))
     lerped = interpolated.interpolated_rows(op, pv)
     if lerped.any():

@@ -28,11 +28,11 @@ either way (:mod:`stiction_ros.study.skew`): the pair that realigns the most
 skewed records right while realigning at most 0.5 % of the unskewed ones.
 Every shared plant record with a law to fit fits it best as given (R² 0.33-1.00
 there, at most 0.91 one row off): their exports are not skewed, and none is
-realigned (three fit no row of their own: LIC33101, and FIC10112 whose PV is
-constant).
+realigned (three fit no row of their own: LIC33101, and the two FIC10112 records,
+whose PV is constant).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class Alignment:
     r2_as_given: float    # the law's R² at no shift (NaN: too few rows to fit)
     r2_best: float        # its R² at the best shift
     best: int             # that best shift, proposed or not
+    declined: str = ''    # why a shift the law proposed was not made ('' when none was)
 
     @property
     def checked(self) -> bool:
@@ -80,23 +81,31 @@ class Alignment:
         sp2 = None if sp is None else np.broadcast_to(sp, np.shape(pv))[cut_pv]
         return op[cut_op], pv[cut_pv], sp2, np.arange(n)[cut_op]
 
+    def decline(self, why: str) -> 'Alignment':
+        """Return this check with its shift not made, and why."""
+        return replace(self, shift=0, declined=why) if self.shift else self
+
     def describe(self, sample_time: float) -> str:
-        """Return the evidence line of a proposed shift ('' when none)."""
-        if self.shift == 0:
+        """Return the evidence line of a shift made or declined ('' when none)."""
+        k = abs(self.shift or (self.best if self.declined else 0))
+        if k == 0:
             return ''
-        k = abs(self.shift)
-        side = 'late' if self.shift > 0 else 'early'
-        return (f'PV is {k} row{"s" if k > 1 else ""} ({k * sample_time:.4g} s) {side} against '
-                f"OP: the controller's PI law fits OP's changes with R² {self.r2_best:.2f} "
-                f'so paired and {self.r2_as_given:.2f} as exported (a clock skew between '
-                'the two tags); read realigned')
+        side = 'late' if (self.shift or self.best) > 0 else 'early'
+        fit = (f"the controller's PI law fits OP's changes with R² {self.r2_best:.2f} so "
+               f'paired and {self.r2_as_given:.2f} as exported')
+        rows = f'{k} row{"s" if k > 1 else ""} ({k * sample_time:.4g} s) {side} against OP'
+        if self.declined:
+            return f'PV looks {rows} ({fit}), but {self.declined}: read as exported'
+        return (f'PV is {rows}: {fit} (a clock skew between the two tags); the verdict and '
+                'the stiction size read it realigned, the signature votes as exported')
 
     def to_json(self) -> dict:
         """Return the check as JSON types (None where the law could not be fitted)."""
         def num(v):
             return round(float(v), 4) if np.isfinite(v) else None
         return {'shift_rows': self.shift, 'law_r2_as_given': num(self.r2_as_given),
-                'law_r2_best': num(self.r2_best), 'best_shift_rows': self.best}
+                'law_r2_best': num(self.r2_best), 'best_shift_rows': self.best,
+                'not_realigned_because': self.declined or None}
 
 
 def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int) -> float:
@@ -108,15 +117,22 @@ def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int) ->
     """
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
+    if op.size < MIN_ROWS + 2 or op.shape != pv.shape:
+        return float('nan')
     e = -pv if sp is None else np.broadcast_to(np.asarray(sp, np.float64), pv.shape) - pv
     d_op, d_e, e = np.diff(op), np.diff(e), e[1:]
-    inside = (op > op.min()) & (op < op.max())
+    finite = np.isfinite(op)
+    if not finite.any():
+        return float('nan')
+    # A gap (NaN) or either end of OP's range: not the law's rows.
+    inside = finite & (op > np.min(op[finite])) & (op < np.max(op[finite]))
     free = inside[1:] & inside[:-1]
+    known = np.isfinite(d_e) & np.isfinite(e)
     n, k = len(d_op), int(shift)
     lo, hi = max(0, -k), min(n, n - k)
     if hi - lo < MIN_ROWS:
         return float('nan')
-    use = free[lo:hi]
+    use = free[lo:hi] & known[lo + k:hi + k]
     y = d_op[lo:hi][use]
     if y.size < MIN_ROWS:
         return float('nan')
