@@ -116,7 +116,7 @@ def test_a_skew_in_a_record_with_held_rows_is_named_but_not_made():
     d = detect(op, pv, s.sp, t.sample_time, sc.integrating)
     timing = d.details['timing']
     assert timing['shift_rows'] == 0 and timing['best_shift_rows'] == 2
-    assert 'held rows' in timing['not_realigned_because']
+    assert 'repeated in OP and PV' in timing['not_realigned_because']
     assert any('PV looks 2 rows (20 s) late against OP' in line and 'read as exported' in line
                for line in d.evidence)
 

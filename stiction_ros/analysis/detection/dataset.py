@@ -92,7 +92,8 @@ def featurize_seed(seed: int) -> tuple:
         judge = lines_judgeable(pv)
     if judge.ok:
         # As detect() reads it; no simulated record is skewed, so nothing moves.
-        op, pv, sp, _ = alignment(op, pv, sp).apply(op, pv, sp)
+        skew = alignment(op, pv, sp)
+        op, pv, sp, _ = (skew.decline('held') if held.count else skew).apply(op, pv, sp)
         judge = judgeable(op, pv, sc.sample_time, sp)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False

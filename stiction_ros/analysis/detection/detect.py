@@ -39,6 +39,8 @@ VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
 # errors off zero, is the pattern a steady load drift shares with a stuck valve.
 RAMP_R2 = 0.9
 HELD_ERRORS = 10.0
+# Why a skew is not realigned once rows repeated in OP and PV alike were dropped.
+HELD_SKEW = 'rows repeated in OP and PV alike were dropped, so rows are not evenly spaced'
 # How many figures the evidence names as the ones the trees leaned on.
 LEANED_ON = 3
 
@@ -171,7 +173,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
         skew = timing.alignment(op, pv, sp)
         if held.count:
             # The rows read are no longer evenly spaced: a row count is not a time.
-            skew = skew.decline('the historian held rows, so rows are not evenly spaced')
+            skew = skew.decline(HELD_SKEW)
         if not realign:
             skew = timing.Alignment(0, skew.r2_as_given, skew.r2_best, skew.best)
         op, pv, sp, kept = skew.apply(op, pv, sp)

@@ -71,8 +71,9 @@ def _seed_logit(seed: int) -> float:
     from stiction_ros.sim.corpus import draw_scenario, simulate
     sc = draw_scenario(int(seed))
     rec = simulate(sc)
-    op, pv, sp, _ = drop_held(rec['op'], rec['pv'], rec['sp'])
-    op, pv, sp, _ = alignment(op, pv, sp).apply(op, pv, sp)
+    op, pv, sp, held = drop_held(rec['op'], rec['pv'], rec['sp'])
+    skew = alignment(op, pv, sp)
+    op, pv, sp, _ = (skew.decline('held') if held.count else skew).apply(op, pv, sp)
     return large_logit(op, pv, sp, sc.integrating)
 
 
