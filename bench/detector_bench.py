@@ -26,6 +26,7 @@ import numpy as np
 
 from stiction_ros.analysis.detection import cnn, detect, extract, load_model, stack
 from stiction_ros.analysis.detection.features import HAM_MAX_DELAY
+from stiction_ros.analysis.detection.timing import alignment
 from stiction_ros.analysis.hammerstein import quantify
 from stiction_ros.analysis.hammerstein.problem import HammersteinProblem
 from stiction_ros.analysis.pipeline import held_signals, is_integrating, signature_window
@@ -41,6 +42,7 @@ LOOPS = ROOT.parent / 'shared' / 'data' / 'plant_loops'
 STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
          'detector': 'learned detector: features + probability',
          'model_only': 'tree model alone (300 trees)',
+         'clock_check': 'clock-skew check: the PI law at 11 shifts (in the detector)',
          'network': 'large network alone (32 channels, 4 sign conventions; in the detector)',
          'network_einsum': 'the same with the einsum convolution it replaced (same bits)',
          'network_wide': 'a 64-channel network of the same depth (timing only)',
@@ -84,6 +86,7 @@ def bench_detector(best_time, folder=LOOPS):
         out['detector'].append(best_time(lambda: detect(*args, integ)))
         logit = None if model.stack is None else 0.0
         out['model_only'].append(best_time(lambda: model.probability(vec, logit), repeats=20))
+        out['clock_check'].append(best_time(lambda: alignment(*args[:3]), repeats=20))
         ch = cnn.channels(x['op'], x['pv'], x['sp'])
         out['network'].append(best_time(lambda: cnn.symmetric_logit(large, ch, integ)))
         out['network_einsum'].append(best_time(
@@ -136,7 +139,9 @@ def markdown(r):
             '|---|---|---|---|',
             *[f'| {name} | {1e3 * med[k]:.3g} | {1e3 * mx[k]:.3g} | '
               f'{_ratio(med[k] / med["old_rule"])} |' for k, name in STEPS.items()],
-            '', 'Most of the time of the detector is its coarse Hammerstein fit (a sticky valve '
+            '', 'The clock-skew check costs '
+            f'{med["clock_check"] / med["detector"]:.1%} of the detector (median). '
+            'Most of the time of the detector is its coarse Hammerstein fit (a sticky valve '
             'before an ARX plant), which was the strongest single separator on simulated '
             'loops. The compiled convolution makes the network '
             f'{med["network_einsum"] / med["network"]:.1f} times as fast as with einsum '
