@@ -22,7 +22,7 @@ from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.interpolated import lines_judgeable
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable
-from stiction_ros.analysis.detection.timing import alignment
+from stiction_ros.analysis.detection.timing import realign
 from stiction_ros.analysis.verdict import from_signatures
 
 # Stiction whose footprint on PV is below the noise (ratio) counts as hidden.
@@ -92,8 +92,7 @@ def featurize_seed(seed: int) -> tuple:
         judge = lines_judgeable(pv)
     if judge.ok:
         # As detect() reads it; no simulated record is skewed, so nothing moves.
-        skew = alignment(op, pv, sp)
-        op, pv, sp, _ = (skew.decline('held') if held.count else skew).apply(op, pv, sp)
+        _, op, pv, sp, _ = realign(op, pv, sp, held.count)
         judge = judgeable(op, pv, sc.sample_time, sp)
     if not judge.ok:
         return seed, None, sc.label, kind, judge.code, False

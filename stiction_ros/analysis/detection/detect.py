@@ -11,7 +11,7 @@ The evidence says which test saw what and where in time, so the engineer
 can check the claim on the trend.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -39,8 +39,6 @@ VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
 # errors off zero, is the pattern a steady load drift shares with a stuck valve.
 RAMP_R2 = 0.9
 HELD_ERRORS = 10.0
-# Why a skew is not realigned once rows repeated in OP and PV alike were dropped.
-HELD_SKEW = 'rows repeated in OP and PV alike were dropped, so rows are not evenly spaced'
 # How many figures the evidence names as the ones the trees leaned on.
 LEANED_ON = 3
 
@@ -170,13 +168,10 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     skew = None
     if judge.ok:
         # Tags stamped on different clocks are realigned by the controller's own law.
-        skew = timing.alignment(op, pv, sp)
-        if held.count:
-            # The rows read are no longer evenly spaced: a row count is not a time.
-            skew = skew.decline(HELD_SKEW)
-        if not realign:
-            skew = timing.Alignment(0, skew.r2_as_given, skew.r2_best, skew.best)
-        op, pv, sp, kept = skew.apply(op, pv, sp)
+        if realign:
+            skew, op, pv, sp, kept = timing.realign(op, pv, sp, held.count)
+        else:
+            skew = replace(timing.alignment(op, pv, sp), shift=0)
         holds['timing'] = skew.to_json()
         judge = judgeable(op, pv, sample_time, sp)
     if not judge.ok:

@@ -28,7 +28,7 @@ import numpy as np
 from stiction_ros._threads import one_blas_thread
 from stiction_ros.analysis.detection import cnn
 from stiction_ros.analysis.detection.stale import drop_held
-from stiction_ros.analysis.detection.timing import alignment
+from stiction_ros.analysis.detection.timing import realign
 from stiction_ros.errors import DetectorFileError
 
 LARGE_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn_large.npz'
@@ -72,8 +72,7 @@ def _seed_logit(seed: int) -> float:
     sc = draw_scenario(int(seed))
     rec = simulate(sc)
     op, pv, sp, held = drop_held(rec['op'], rec['pv'], rec['sp'])
-    skew = alignment(op, pv, sp)
-    op, pv, sp, _ = (skew.decline('held') if held.count else skew).apply(op, pv, sp)
+    _, op, pv, sp, _ = realign(op, pv, sp, held.count)
     return large_logit(op, pv, sp, sc.integrating)
 
 

@@ -36,7 +36,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ['Alignment', 'alignment', 'law_r2', 'MARGIN', 'MAX_SHIFT', 'MIN_LAW_R2', 'propose']
+__all__ = ['Alignment', 'alignment', 'HELD', 'law_r2', 'MARGIN', 'MAX_SHIFT', 'MIN_LAW_R2',
+           'propose', 'realign']
 
 # Rows of skew looked for either way: 5 rows of a 10 s export are 50 s.
 MAX_SHIFT = 5
@@ -46,6 +47,8 @@ MIN_LAW_R2 = 0.3
 MARGIN = 0.3
 # Fewer rows than this inside OP's range: no law can be told from chance.
 MIN_ROWS = 50
+# Why a skew is not made once rows repeated in OP and PV alike were dropped.
+HELD = 'rows repeated in OP and PV alike were dropped, so rows are not evenly spaced'
 
 
 @dataclass(frozen=True)
@@ -171,3 +174,16 @@ def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Alignmen
         return Alignment(0, float('nan'), float('nan'), 0)
     shift, best, top = propose(r2)
     return Alignment(int(shift[0]), given, float(top[0]), int(best[0]))
+
+
+def realign(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, dropped: int = 0) -> tuple:
+    """
+    Return ``(Alignment, op, pv, sp, rows)``: the record as the detector reads it.
+
+    ``dropped``: rows repeated in OP and PV alike that were left out before
+    (``stale.drop_held``); a skew is then named but not made (:data:`HELD`).
+    """
+    skew = alignment(op, pv, sp)
+    if dropped:
+        skew = skew.decline(HELD)
+    return (skew, *skew.apply(op, pv, sp))
