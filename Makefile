@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy robustness detector cnn cnn-large cnn-large-tune cnn-wide cnn-wide-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy robustness detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -92,22 +92,6 @@ cnn-large-tune: venv
 	  --peak-lr 3e-4 --without-deadband-like --jobs 2 \
 	  --init stiction_ros/resources/stiction_cnn_large_base.npz \
 	  --out stiction_ros/resources/stiction_cnn_large.npz $(CNN_ARGS)
-
-# The wide network the stack weighs beside the large one: the same two steps at 64
-# channels and 64 hidden units (stiction_cnn_wide_base.npz, then stiction_cnn_wide.npz;
-# the base about 7 min on one H200, the tuning about 5 min on 2 cores). Then
-# `make detector`.
-cnn-wide: venv
-	$(PY) -m pip install --quiet -r requirements/train.txt
-	$(PY) -m stiction_ros.cli.cnn --seeds 600000 --epochs 10 --batch 256 --width 64 --hidden 64 \
-	  --out stiction_ros/resources/stiction_cnn_wide_base.npz $(CNN_ARGS)
-
-cnn-wide-tune: venv
-	$(PY) -m pip install --quiet -r requirements/train.txt
-	$(PY) -m stiction_ros.cli.cnn --first-seed 3200000 --seeds 10000 --epochs 3 --batch 64 \
-	  --peak-lr 3e-4 --without-deadband-like --jobs 2 \
-	  --init stiction_ros/resources/stiction_cnn_wide_base.npz \
-	  --out stiction_ros/resources/stiction_cnn_wide.npz $(CNN_ARGS)
 
 # Tests that start no ROS node run on two workers (pytest-xdist), a test file whole
 # in one; those that do (marker `ros`) then run in one process, as alone as they were

@@ -58,12 +58,9 @@ def test_the_large_networks_logits_are_kept_and_read_back(tmp_path):
     # Read back, not recomputed: what the file holds is what comes out.
     np.save(files[0], np.array([11.0, -11.0]))
     assert stack.seed_logits(seeds, cache=tmp_path).tolist() == [11.0, -11.0]
-    # Other seeds are another file, and so is another network.
+    # Other seeds are another file.
     stack.seed_logits([3], cache=tmp_path)
     assert len(list(tmp_path.glob('large_logits_*.npy'))) == 2
-    cols = stack.seed_logit_columns(stack.shipped_networks(), seeds, cache=tmp_path)
-    assert len(list(tmp_path.glob('large_logits_*.npy'))) == 1 + len(stack.NETWORKS)
-    assert cols.shape == (2, len(stack.NETWORKS)) and cols[:, 0].tolist() == [11.0, -11.0]
 
 
 def test_the_reliability_table_finds_a_calibrated_probability_calibrated():

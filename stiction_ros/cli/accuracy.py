@@ -146,9 +146,9 @@ def main(argv=None):
     test = dataset.build(range(dataset.TEST.start, dataset.TEST.start + args.sim_test),
                          args.jobs, cache=args.cache or None)
     if model.stack is not None:
-        say(f'the {len(model.networks)} large networks on the simulated test set')
-        test['large_logit'] = stack.seed_logit_columns(model.networks, test['seed'], args.jobs,
-                                                       args.cache or None)
+        say('the large network on the simulated test set')
+        test['large_logit'] = stack.seed_logits(test['seed'], args.jobs,
+                                                cache=args.cache or None)
     say('sticky test records that OP and PV cannot tell from a deadband (left out, counted)')
     whole = deadband_like.mark(test, args.jobs, cache=args.cache or None)
     test = deadband_like.leave_out(whole)
@@ -161,8 +161,6 @@ def main(argv=None):
         'kernels': kernels(),
         'data': str(args.data), 'model': model.meta, 'cnn': cnn.load().meta,
         'cnn_large': None if model.stack is None else stack.network().meta,
-        'cnn_wide': next((stack.network(stack.RESOURCES / n['file']).meta
-                          for n in model.networks if n['name'] == 'cnn_wide_logit'), None),
         'stuck_threshold': stuck_th,
         'plant': plant_rows(cases, cv_pred, stuck_th, by_tag_pred),
         'plant_threshold_by_tag': by_tag_threshold,

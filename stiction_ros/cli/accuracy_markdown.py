@@ -251,8 +251,6 @@ def markdown(study: dict) -> str:
         *_cnn_line(study.get('cnn')),
         *_cnn_line(study.get('cnn_large'), 'The large network the stack weighs in '
                    '(`make cnn-large`, then `make cnn-large-tune`)'),
-        *_cnn_line(study.get('cnn_wide'), 'The wide network the stack weighs in beside it '
-                   '(`make cnn-wide`, then `make cnn-wide-tune`)'),
         f'- Whole analysis of one plant file (reading, fits, signatures, detector, '
         f'Hammerstein, HTML): median {sorted(secs)[len(secs) // 2]:.2f} s, max {max(secs):.2f} s.',
         '',

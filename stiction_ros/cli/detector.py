@@ -66,8 +66,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     # The logits are kept under the whole set's seeds; the map is fitted on the
     # records make accuracy scores: without the sticky ones OP and PV cannot
     # tell from a deadband, so the probability is that of a stick-slip they show.
-    networks = stack.shipped_networks()
-    ca['large_logit'] = stack.seed_logit_columns(networks, ca['seed'], jobs, cache)
+    ca['large_logit'] = stack.seed_logits(ca['seed'], jobs, cache=cache)
     say('calibration records that OP and PV cannot tell from a deadband: left out of the map')
     whole = deadband_like.mark(ca, jobs, cache)
     ca = deadband_like.leave_out(whole)
@@ -83,15 +82,16 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
             'date': datetime.date.today().isoformat(),
             # What the figures ran on: the same on two hosts, the same trees.
             'kernels': kernels()}
+    large = stack.network()
     model, clf = train(tr['x'], tr['y'], ca['x'], ca['y'], FEATURE_NAMES, meta)
     trees_only = balanced_accuracy(confusion(ca['y'], model.probability(ca['x']) >= 0.5))
-    say(f'stack: the trees out of {FOLDS} folds, the {len(networks)} large networks on both sets')
+    say(f'stack: the trees out of {FOLDS} folds, the large network on both sets')
     oof = out_of_fold_scores(tr['x'], tr['y'], PARAMS)
-    lt = stack.seed_logit_columns(networks, tr['seed'], jobs, cache)
+    lt = stack.seed_logits(tr['seed'], jobs, cache=cache)
     lc = ca['large_logit']
     coef = fit_stack(oof, lt, tr['y'])
-    meta['stack'] = {'coef': coef, 'folds': FOLDS, 'networks': networks,
-                     'views': [list(v) for v in stack.VIEWS]}
+    meta['stack'] = {'coef': coef, 'folds': FOLDS, 'network': stack.LARGE_PATH.name,
+                     'network_sha256': large.sha256, 'views': [list(v) for v in stack.VIEWS]}
     model = replace(model, meta=meta)
     calib_x, calib_y = fit_calibration(model.score(ca['x'], lc), ca['y'])
     model = replace(model, calib_x=calib_x, calib_y=calib_y)

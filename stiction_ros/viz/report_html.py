@@ -194,8 +194,8 @@ def _leaned(leaned: dict) -> list:
             f'<p>The detector&rsquo;s score starts from {leaned["start"]:+.2f} (log-odds of '
             f'stiction, before it reads any figure of the record) and reaches '
             f'{leaned["score"]:+.2f}; these parts moved it most (docs/DETECTION.md, section 2, '
-            f'says what each figure measures; <code>cnn_large_logit</code> and '
-            f'<code>cnn_wide_logit</code> are the two large networks&rsquo;).</p>',
+            f'says what each figure measures; <code>cnn_large_logit</code> is the large '
+            f'network&rsquo;s).</p>',
             table(['figure', 'value', 'moved the score by'], rows)]
 
 

@@ -199,8 +199,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
         return Detection('cannot tell', None, judge.reason, judge, lines, ev['features'],
                          ev['period_problem'], info, holds)
     # The large network reads the same fresh rows as the figures.
-    logit = None if model.stack is None else stack.logits(model.networks, op, pv, sp,
-                                                          integrating)
+    logit = None if model.stack is None else stack.large_logit(op, pv, sp, integrating)
     p = float(model.probability(vec, logit)[0])
     answer = answer_of(p)
     reason = reason_of(p)
@@ -248,28 +247,26 @@ def probability_text(p: float) -> str:
     return f'{p:.3f}' if p < 0.01 or p > 0.99 else f'{p:.2f}'
 
 
-def leaned_on(model: model_file.TreeModel, vec: np.ndarray,
-              large_logit: float | np.ndarray | None = None, top: int = LEANED_ON) -> dict:
+def leaned_on(model: model_file.TreeModel, vec: np.ndarray, large_logit: float | None = None,
+              top: int = LEANED_ON) -> dict:
     """
     Return which figures moved the detector's score of ``vec`` most, and by how much.
 
     ``contributions`` are in log-odds of the score the calibration map reads:
     positive toward stiction.  ``start`` is the score of a record the trees
     know nothing about (the training records' mean leaf); with a stack the
-    trees' parts are weighed as the stack weighs them and each network's
-    logit (``large_logit``, one per network in ``model.networks``) is one more
-    part, under its name (``cnn_large_logit``, ``cnn_wide_logit``).  ``start``
-    plus every part is ``score``.
+    trees' parts are weighed as the stack weighs them and the large network's
+    logit is one more part (``cnn_large_logit``).  ``start`` plus every part
+    is ``score``.
     """
     bias, per = model.contributions(vec)
     names, x = list(model.feature_names), list(np.ravel(vec))
     w = model.stack
     if w is not None:
         bias, per = w[0] + w[1] * bias, w[1] * per
-        z = np.ravel(np.asarray(large_logit, dtype=np.float64))
-        names += [n['name'] for n in model.networks]
-        x += [float(v) for v in z]
-        per = np.append(per, np.asarray(w[2:]) * z)
+        names.append('cnn_large_logit')
+        x.append(float(large_logit))
+        per = np.append(per, w[2] * float(large_logit))
     order = np.argsort(-np.abs(per))[:top]
     return {'start': round(float(bias), 3), 'score': round(float(bias + per.sum()), 3),
             'contributions': [{'feature': names[i],

@@ -115,75 +115,27 @@ class TreeModel:
 
     @property
     def stack(self) -> list | None:
-        """Return ``[intercept, trees weight, a weight per network]``, or None for trees alone."""
+        """Return ``[intercept, trees weight, large network weight]``, or None for trees alone."""
         stack = self.meta.get('stack')
         return None if stack is None else [float(c) for c in stack['coef']]
-
-    @property
-    def networks(self) -> list[dict]:
-        """Return the networks the stack weighs, in its order (empty for trees alone)."""
-        stack = self.meta.get('stack')
-        return [] if stack is None else stack_networks(stack)
 
     def score(self, x: np.ndarray, large_logit: np.ndarray | None = None) -> np.ndarray:
         """
         Return the score the calibration map reads, for each row of ``x``.
 
         The trees' raw score, or with a stack (``stiction_ros.analysis.detection.stack``)
-        its weighed sum with the networks' logits of each row: ``large_logit``
-        holds one column per network in :attr:`networks` (a 1-D array where
-        the stack weighs one network, or one row's logits).
+        its weighed sum with the large network's logit of each row.
         """
         raw, w = self.raw_score(x), self.stack
         if w is None:
             return raw
         if large_logit is None:
             raise ValueError('this detector weighs the large network in: give its logit')
-        k = len(w) - 2
-        z = np.asarray(large_logit, dtype=np.float64).reshape(-1, k)
-        if len(z) != len(raw):
-            raise ValueError(f'{len(raw)} records and {len(z)} rows of network logits')
-        return w[0] + w[1] * raw + z @ np.asarray(w[2:])
+        return w[0] + w[1] * raw + w[2] * np.asarray(large_logit, dtype=np.float64)
 
     def probability(self, x: np.ndarray, large_logit: np.ndarray | None = None) -> np.ndarray:
         """Return the calibrated probability of stiction of each row of ``x``."""
         return np.interp(self.score(x, large_logit), self.calib_x, self.calib_y)
-
-
-# The name a network's logit goes by in a stack written before stacks could
-# weigh more than one (a single 'network' and 'network_sha256').
-FIRST_NETWORK = 'cnn_large_logit'
-
-
-def stack_networks(stack: dict) -> list[dict]:
-    """
-    Return ``[{'name', 'file', 'sha256'}, ...]``: the networks a stack header weighs.
-
-    A header of one network (before 2026-11-28's second) names it by
-    ``network`` and ``network_sha256``.
-    """
-    nets = stack.get('networks')
-    if nets is None:
-        return [{'name': FIRST_NETWORK, 'file': stack.get('network', 'stiction_cnn_large.npz'),
-                 'sha256': stack.get('network_sha256')}]
-    return [dict(n) for n in nets]
-
-
-def _stack_ok(stack) -> bool:
-    if not (isinstance(stack, dict) and isinstance(stack.get('coef'), list)):
-        return False
-    nets = stack.get('networks')
-    if nets is not None and not (isinstance(nets, list) and nets
-                                 and all(isinstance(n, dict) for n in nets)):
-        return False
-    nets = stack_networks(stack)
-    # A network is a file beside the detector's, never a path elsewhere.
-    named = all(isinstance(n.get(k), str) and n[k]
-                for n in nets for k in ('name', 'file', 'sha256'))
-    return (named and all(Path(n['file']).name == n['file'] for n in nets)
-            and len({n['name'] for n in nets}) == len(nets)
-            and len(stack['coef']) == 2 + len(nets)
-            and all(isinstance(c, (int, float)) and np.isfinite(c) for c in stack['coef']))
 
 
 def digest(arrays: dict, header: str) -> str:
@@ -292,9 +244,13 @@ def load(path: str | Path | None = None, feature_names: tuple | None = None) -> 
         raise DetectorFileError(f'{path}: checksum mismatch (the file was changed or damaged)')
     _check(a, header, path)
     stack = header['meta'].get('stack')
-    if stack is not None and not _stack_ok(stack):
-        raise DetectorFileError(f'{path}: the stack needs two finite weights and one more per '
-                                f'network, and each network named by its file and SHA-256')
+    if stack is not None and not (
+            isinstance(stack, dict) and isinstance(stack.get('coef'), list)
+            and len(stack['coef']) == 3
+            and all(isinstance(c, (int, float)) and np.isfinite(c) for c in stack['coef'])
+            and isinstance(stack.get('network_sha256'), str)):
+        raise DetectorFileError(f'{path}: the stack needs three finite weights and the '
+                                f'SHA-256 of its network')
     names = tuple(header['feature_names'])
     if feature_names is not None and names != tuple(feature_names):
         raise DetectorFileError(f'{path}: trained on features {list(names)}, this code '

@@ -116,11 +116,7 @@ def out_of_fold_scores(x: np.ndarray, y: np.ndarray, params: dict) -> np.ndarray
 
 
 def fit_stack(tree_scores: np.ndarray, logits: np.ndarray, y: np.ndarray) -> list:
-    """
-    Return ``[intercept, trees weight, network weights...]`` of the class-balanced logistic fit.
-
-    ``logits``: one column per network (a 1-D array for one network).
-    """
+    """Return ``[intercept, trees weight, network weight]`` of the class-balanced logistic fit."""
     from sklearn.linear_model import LogisticRegression
     fit = LogisticRegression(class_weight='balanced').fit(np.c_[tree_scores, logits], y)
     return [float(fit.intercept_[0]), *map(float, fit.coef_[0])]
