@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stiction_ros.analysis.detection.timing import alignment, law_r2, MARGIN, MAX_SHIFT, \
-    MIN_LAW_R2
+from stiction_ros.analysis.detection.timing import alignment, law_profile, law_r2, MARGIN, \
+    MAX_SHIFT, MIN_LAW_R2
 from stiction_ros.study.distortions import every, shift_pv, Trend
 
 
@@ -39,6 +39,16 @@ def test_a_skewed_record_is_realigned_to_the_rows_the_controller_paired(k):
     np.testing.assert_array_equal(sp, t.sp[m:n - m])
     # Rows name the OP rows of the record as given.
     np.testing.assert_array_equal(skewed.op[rows], op)
+
+
+def test_the_laws_profile_peaks_at_the_skew_and_is_the_fit_at_each_shift():
+    _, t = _loop(41)
+    skewed = shift_pv(t, 2)
+    prof = law_profile(skewed.op, skewed.pv, skewed.sp)
+    shifts = np.arange(-MAX_SHIFT, MAX_SHIFT + 1)
+    assert prof.shape == shifts.shape and shifts[int(np.nanargmax(prof))] == 2
+    for k in (-MAX_SHIFT, 0, 2, MAX_SHIFT):
+        assert prof[k + MAX_SHIFT] == law_r2(skewed.op, skewed.pv, skewed.sp, k)
 
 
 def test_a_skew_beyond_the_rows_looked_for_is_not_guessed_at():

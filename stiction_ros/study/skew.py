@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from stiction_ros._threads import pool_map
-from stiction_ros.analysis.detection.timing import law_r2, MAX_SHIFT, propose
+from stiction_ros.analysis.detection.timing import law_profile, MAX_SHIFT, propose
 from stiction_ros.study.distortions import every, shift_pv, Trend
 
 EVERY = (2, 3)
@@ -40,7 +40,7 @@ def _profiles(seed: int) -> np.ndarray:
         t = every(t0, k)
         for j, s in enumerate((0, *SKEWS)):
             u = shift_pv(t, s)
-            out[g, j] = [law_r2(u.op, u.pv, u.sp, d) for d in range(-MAX_SHIFT, MAX_SHIFT + 1)]
+            out[g, j] = law_profile(u.op, u.pv, u.sp)
     return out
 
 

@@ -36,8 +36,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ['Alignment', 'alignment', 'HELD', 'law_r2', 'MARGIN', 'MAX_SHIFT', 'MIN_LAW_R2',
-           'propose', 'realign']
+__all__ = ['Alignment', 'alignment', 'HELD', 'law_profile', 'law_r2', 'MARGIN', 'MAX_SHIFT',
+           'MIN_LAW_R2', 'propose', 'realign']
 
 # Rows of skew looked for either way: 5 rows of a 10 s export are 50 s.
 MAX_SHIFT = 5
@@ -166,9 +166,14 @@ def propose(profiles: np.ndarray, min_r2: float = MIN_LAW_R2,
     return np.where(ok, best, 0), best, top
 
 
+def law_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
+    """Return the law's R² at every shift ``-MAX_SHIFT`` .. ``MAX_SHIFT`` (NaN: not fitted)."""
+    return np.array([law_r2(op, pv, sp, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
+
+
 def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Alignment:
     """Return the :class:`Alignment` of a record: the skew its controller's law shows, if any."""
-    r2 = np.array([law_r2(op, pv, sp, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
+    r2 = law_profile(op, pv, sp)
     given = float(r2[MAX_SHIFT])
     if not np.isfinite(given):
         return Alignment(0, float('nan'), float('nan'), 0)
