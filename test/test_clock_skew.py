@@ -153,3 +153,44 @@ def test_the_shipped_thresholds_are_the_ones_the_training_records_choose():
     assert choice.chosen == (MIN_LAW_R2, MARGIN)
     row = next(r for r in choice.rows if (r['min_r2'], r['margin']) == choice.chosen)
     assert all(row[f'every_{k}']['false'] <= MAX_FALSE for k in (2, 3))
+
+
+def _record(trend):
+    from stiction_ros.analysis.record import Record
+    n = len(trend.op)
+    return Record(t=np.arange(n) * trend.sample_time, sample_time=trend.sample_time,
+                  signals={'op': trend.op, 'pv': trend.pv, 'sp': trend.sp},
+                  valid=np.ones(n, bool), source={'path': 'skewed.csv', 'format': 'csv'})
+
+
+@pytest.mark.parametrize('k', [3, -2])
+def test_the_signature_vote_reads_the_record_the_verdict_read(k):
+    # Before, the vote read PV as exported and so paired each OP with another scan's PV.
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.signatures.all import compute_signatures
+    from stiction_ros.analysis.verdict import from_signatures
+    sc, t = _loop(48)                  # a Choudhury valve, S 1.8 % J 1.9 %, in a limit cycle
+    n, m = len(t.op), abs(k)
+    skewed = shift_pv(t, k)
+    res = analyze(_record(skewed), Options(hammerstein=False)).report
+    assert res['stiction']['detector']['timing']['shift_rows'] == k
+    win = res['signature_window']
+    assert win['pv_shift_rows'] == k and win['samples'] == n - 2 * m   # shift_pv drops m
+    # Times are OP's: PV early leaves OP's first rows without a PV of their own scan.
+    assert win['start_s'] == (m * t.sample_time if k < 0 else 0.0)
+    osc, sigs = compute_signatures(t.op[m:n - m], t.pv[m:n - m], t.sp[m:n - m],
+                                   t.sample_time, integrating=sc.integrating)
+    got = res['stiction']['signatures']
+    assert got.keys() == sigs.keys()
+    for name, sig in sigs.items():
+        assert got[name] == sig.to_json(), name
+    assert res['stiction']['signature_vote']['score'] == round(
+        float(from_signatures(osc, sigs)[1]), 4)
+    assert any('PV read' in note and 'paired again' in note for note in res['notes'])
+    # What that changes: the skew hides the relay-like cross-correlation from Horch's test
+    # and narrows the PV-OP ellipse well below the valve's band.
+    _, as_given = compute_signatures(skewed.op, skewed.pv, skewed.sp, t.sample_time,
+                                     integrating=sc.integrating)
+    assert got['horch']['stiction'] is True and as_given['horch'].stiction is False
+    assert abs(got['ellipse']['value'] - sc.S) < 0.1 * sc.S
+    assert as_given['ellipse'].value < 0.6 * sc.S

@@ -173,16 +173,13 @@ def held_signals(record, a, b):
     return out
 
 
-def run_signatures(record, integrating):
-    """Return (oscillation, signatures, window, held signals) on the longest usable stretch."""
+def run_signatures(held, sample_time, integrating):
+    """Return (oscillation, signatures) of ``held`` (None and {} without a stretch)."""
     from stiction_ros.analysis.signatures.all import compute_signatures
-    win = signature_window(record)
-    if win is None:
-        return None, {}, None, None
-    x = held_signals(record, win[0], win[1])
-    osc, sigs = compute_signatures(x['op'], x['pv'], x['sp'], record.sample_time,
-                                   integrating=integrating)
-    return osc, sigs, win, x
+    if held is None:
+        return None, {}
+    return compute_signatures(held['op'], held['pv'], held['sp'], sample_time,
+                              integrating=integrating)
 
 
 def run_hammerstein(held, sample_time, integrating):
@@ -191,9 +188,16 @@ def run_hammerstein(held, sample_time, integrating):
     return quantify(held['op'], held['pv'], sample_time, integrating=integrating)
 
 
+def realigned_rows(detection) -> int:
+    """Return the rows PV was read late against OP (negative: early; 0 when not realigned)."""
+    if detection is None:
+        return 0
+    return int(detection.details.get('timing', {}).get('shift_rows', 0) or 0)
+
+
 def realigned(held, detection):
     """Return the signals as the detection read them: PV shifted against OP by its skew."""
-    shift = detection.details.get('timing', {}).get('shift_rows', 0)
+    shift = realigned_rows(detection)
     if not shift:
         return held
     op, pv, sp, _ = Alignment(shift, 1.0, 1.0, shift).apply(held['op'], held['pv'], held['sp'])
@@ -237,30 +241,45 @@ def analyze(record: Record, options: Options | None = None,
     integrating, why = is_integrating(record, options.loop_type)
     report['loop_type'] = 'integrating' if integrating else 'self-regulating'
     notes.append(why)
-    osc, sigs, win, held = run_signatures(record, integrating)
-    analysis.oscillation, analysis.signatures = osc, sigs
-    analysis.signature_window, analysis.signature_inputs = win, held
-    if win is None:
-        notes.append(f'signatures skipped: they need OP and PV over at least '
-                     f'{MIN_SIGNATURE_SAMPLES} contiguous valid samples')
-    else:
-        report['signature_window'] = {'start_s': float(record.t[win[0]]),
-                                      'end_s': float(record.t[win[1] - 1]),
-                                      'samples': int(win[1] - win[0]), 'held': win[2]}
-        if win[2]:
-            notes.append(f'signatures: {win[2]} isolated invalid samples (runs of at most '
-                         f'{MAX_BRIDGE}) hold the previous value so that the signatures see '
-                         f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
-    ham = detection = None
+    win = signature_window(record)
+    held = None if win is None else held_signals(record, win[0], win[1])
+    detection = None
     if not analysis.fits:
         # No MV, or an MV no model could be fitted to: OP and PV decide.
         detection = run_detection(record, win, held, integrating, options.detector)
         analysis.detection = detection
+    # The signatures read the record as the detector did: PV paired again with the OP of
+    # its own scan where the clock-skew check found the two tags stamped apart.
+    read = held if detection is None or held is None else realigned(held, detection)
+    osc, sigs = run_signatures(read, record.sample_time, integrating)
+    analysis.oscillation, analysis.signatures = osc, sigs
+    analysis.signature_window, analysis.signature_inputs = win, read
+    if win is None:
+        notes.append(f'signatures skipped: they need OP and PV over at least '
+                     f'{MIN_SIGNATURE_SAMPLES} contiguous valid samples')
+    else:
+        # Times name OP's rows: a realigned record keeps fewer of them (PV early: not the
+        # first ones), so that slip times count from the row the signatures start on.
+        shift = realigned_rows(detection)
+        first, last = win[0] + max(0, -shift), win[1] - 1 - max(0, shift)
+        report['signature_window'] = {'start_s': float(record.t[first]),
+                                      'end_s': float(record.t[last]),
+                                      'samples': int(last + 1 - first), 'held': win[2]}
+        if win[2]:
+            notes.append(f'signatures: {win[2]} isolated invalid samples (runs of at most '
+                         f'{MAX_BRIDGE}) hold the previous value so that the signatures see '
+                         f'one stretch of {win[1] - win[0]} samples; the fits bridge nothing')
+        if shift:
+            report['signature_window']['pv_shift_rows'] = shift
+            side = 'late' if shift > 0 else 'early'
+            notes.append(f'signatures: PV read {abs(shift)} rows {side} against OP, paired '
+                         'again as the detector read it (clock skew between the two tags)')
+    ham = None
     if (win is not None and options.hammerstein and not analysis.fits
             and detection.judge.ok and not detection.period_problem):
         # Sizing needs what judging needs, and a resolvable cycle if there is
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
-        ham = run_hammerstein(realigned(held, detection), record.sample_time, integrating)
+        ham = run_hammerstein(read, record.sample_time, integrating)
     report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']

@@ -99,8 +99,8 @@ class Alignment:
         rows = f'{k} row{"s" if k > 1 else ""} ({k * sample_time:.4g} s) {side} against OP'
         if self.declined:
             return f'PV looks {rows} ({fit}), but {self.declined}: read as exported'
-        return (f'PV is {rows}: {fit} (a clock skew between the two tags); the verdict reads '
-                "it realigned (the report's signature vote reads it as exported)")
+        return (f'PV is {rows}: {fit} (a clock skew between the two tags); the verdict, the '
+                'signature vote and the stiction size read it realigned')
 
     def to_json(self) -> dict:
         """Return the check as JSON types (None where the law could not be fitted)."""
