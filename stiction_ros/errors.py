@@ -59,6 +59,10 @@ class GridError(StictionError, ValueError):
     """The stamps do not define a sample grid (fewer than two distinct stamps)."""
 
 
+class ReportWriteError(StictionError, OSError):
+    """A report cannot be written; the message names the report, the path and the cause."""
+
+
 class IdentifyError(StictionError, ValueError):
     """The data cannot support identification (too short, no MV, flat OP)."""
 

@@ -14,17 +14,19 @@ and the analyzer node all go through :func:`analyze_file`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 import math
 import numbers
 import os
+from pathlib import Path
 import time
 from typing import Callable, TYPE_CHECKING
 
 from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.app.progress import print_nothing, Step
-from stiction_ros.errors import InputError
+from stiction_ros.errors import InputError, ReportWriteError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
     from stiction_ros.analysis.identify import SearchProgress
@@ -37,6 +39,8 @@ if TYPE_CHECKING:  # pragma: no cover - for the annotations only
 HOLDOUT_MAX = 0.9
 # What --columns may name: the time and the readers' signals (stiction_ros.analysis.record).
 COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp')
+# Files a report must never be written over (the readers' suffixes, and a bag's files).
+RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap', '.db3', '.yaml', '.xlsx', '.xls', '.ods')
 COLUMNS_FIX = 'write SIGNAL=COLUMN pairs, e.g. --columns op=FIC101.OP,pv=FIC101.PV,t=Timestamp'
 
 Say = Callable[[str], None]
@@ -52,6 +56,16 @@ def default_jobs() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
         return os.cpu_count() or 1
+
+
+def _same_file(a: str, b: str) -> bool:
+    """Return whether paths ``a`` and ``b`` name one file (links and ``..`` resolved)."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+        return Path(a).resolve() == Path(b).resolve()
+    except OSError:
+        return False
 
 
 def _path_or_none(value, name):
@@ -188,6 +202,7 @@ class AnalyzeOptions:
                              'historian export')
         for name in ('detector', 'json_path', 'html_path'):
             put(name, _path_or_none(getattr(self, name), name))
+        self._check_reports()
         # The texts of stiction_ros.analysis.pipeline.Options, which checks these too.
         if self.model not in MODEL_CHOICES:
             raise InputError(f'model must be one of {MODEL_CHOICES}, got {self.model!r}')
@@ -216,6 +231,22 @@ class AnalyzeOptions:
             put('jobs', _whole(self.jobs, 'jobs (--jobs)', 1,
                                'worker processes, or threads of --explain for one recording; '
                                'leave it out for every core'))
+
+    def _check_reports(self) -> None:
+        # A report written over the recording, or over the other report, loses it.
+        flags = {'json_path': '--json', 'html_path': '--html'}
+        given = [(n, getattr(self, n)) for n in flags if getattr(self, n)]
+        for name, path in given:
+            if _same_file(path, self.input):
+                raise InputError(f'{name} ({flags[name]}) {path} is the recording itself: '
+                                 'writing the report would overwrite it; name another file')
+            if Path(path).suffix.lower() in RECORDING_SUFFIXES and Path(path).exists():
+                raise InputError(f'{name} ({flags[name]}) {path} exists and looks like a '
+                                 'recording: the report would overwrite it; name a .json or '
+                                 '.html file')
+        if len(given) == 2 and _same_file(given[0][1], given[1][1]):
+            raise InputError(f'--json and --html both name {given[0][1]}: the page would '
+                             'overwrite the JSON report; give them different files')
 
     @staticmethod
     def _number(name, v):
@@ -291,11 +322,23 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     report['elapsed_s'] = round(time.perf_counter() - t0, 3)
     from stiction_ros.app.report_files import write_html, write_json
     if options.json_path:
-        write_json(options.json_path, report)
+        with _writing('JSON report (--json)', options.json_path):
+            write_json(options.json_path, report)
         say(f'wrote {options.json_path}')
     if options.html_path:
-        write_html(analysis, options.html_path, say)
+        with _writing('HTML report (--html)', options.html_path):
+            write_html(analysis, options.html_path, say)
     return analysis
+
+
+@contextmanager
+def _writing(what: str, path: str) -> Iterator[None]:
+    """Turn a failed write into an error that names the report and the path."""
+    try:
+        yield
+    except OSError as exc:
+        raise ReportWriteError(f'cannot write the {what} {path}: '
+                               f'{exc.strerror or exc}') from exc
 
 
 def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_nothing) -> None:

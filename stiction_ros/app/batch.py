@@ -13,6 +13,7 @@ from __future__ import annotations
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, replace
 import glob
+import hashlib
 from pathlib import Path
 import re
 import time
@@ -33,7 +34,16 @@ WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
 
 
 def _is_bag(path):
-    return path.is_dir() and ((path / 'metadata.yaml').is_file() or any(path.glob('*.mcap')))
+    # A rosbag2 directory: its metadata.yaml, or (a recorder killed before writing
+    # that) files named as rosbag2 names them, <directory>_<n>.mcap, and no other .mcap.
+    # A folder of loose .mcap files holds that many recordings, never one merged bag.
+    if not path.is_dir():
+        return False
+    if (path / 'metadata.yaml').is_file():
+        return True
+    files = list(path.glob('*.mcap'))
+    split = re.compile(re.escape(path.name) + r'_\d+\.mcap')
+    return bool(files) and all(split.fullmatch(f.name) for f in files)
 
 
 def _walk(folder):
@@ -76,7 +86,7 @@ def expand(source):
 
 
 def report_name(path, root):
-    """Return a file name for the report of ``path``, unique within ``root``."""
+    """Return a file name for the report of ``path``: its path below ``root``, flattened."""
     try:
         rel = Path(path).resolve().relative_to(Path(root).resolve())
     except ValueError:
@@ -84,10 +94,32 @@ def report_name(path, root):
     return re.sub(r'[^A-Za-z0-9._-]+', '_', str(rel).strip('/')) + '.json'
 
 
+def report_names(paths, root) -> dict[str, str]:
+    """
+    Return {path: report file name}, every name different.
+
+    Flattening can give two recordings one name (``a/b/c.csv`` and
+    ``a_b/c.csv``); each of those then carries a hash of its own path, so
+    that no report overwrites another.
+    """
+    names = {str(p): report_name(p, root) for p in paths}
+    count: dict[str, int] = {}
+    for name in names.values():
+        count[name.lower()] = count.get(name.lower(), 0) + 1
+    for p, name in names.items():
+        if count[name.lower()] > 1:
+            tag = hashlib.sha1(str(Path(p).resolve()).encode()).hexdigest()[:8]
+            names[p] = f'{name[:-len(".json")]}-{tag}.json'
+    return names
+
+
 def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path | None = None,
-                root: str | Path = '.') -> dict:
+                root: str | Path = '.', name: str | None = None) -> dict:
     """
     Analyse one recording with ``options`` (its ``input`` replaced by ``path``).
+
+    Its JSON report goes to ``out_dir`` (if given) as ``name``, by default
+    :func:`report_name` of ``path`` below ``root``.
 
     Runs in a worker process or on a Dask worker, so it returns plain data and
     never raises for a bad recording.
@@ -128,11 +160,16 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']
         if out_dir is not None:
-            target = Path(out_dir) / report_name(path, root)
+            target = Path(out_dir) / (name or report_name(path, root))
             write_json(target, report)
             row['report'] = str(target)
     row['seconds'] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def _analyze_named(path, name, options, out_dir, root):
+    # For Dask's map, which pairs each path with its name by position.
+    return analyze_one(path, options, out_dir, root, name)
 
 
 def _why_not(st: dict) -> str:
@@ -152,22 +189,25 @@ def _why_not(st: dict) -> str:
 
 def _results(paths, options, jobs, scheduler, out_dir, root):
     # Yields rows as they finish, whichever way the work is spread.
+    names = report_names(paths, root)
     if scheduler:
         from distributed import as_completed as dask_completed, Client
         with Client(scheduler) as client:
-            futures = client.map(analyze_one, paths, options=options, out_dir=out_dir,
-                                 root=root, pure=False)
+            # Keywords go to every call alike; each name goes with its own path.
+            futures = client.map(_analyze_named, paths, [names[str(p)] for p in paths],
+                                 options=options, out_dir=out_dir, root=root, pure=False)
             for future in dask_completed(futures):
                 yield future.result()
     elif jobs > 1 and len(paths) > 1:
         with ProcessPoolExecutor(max_workers=min(jobs, len(paths)),
                                  initializer=one_blas_thread) as pool:
-            futures = [pool.submit(analyze_one, p, options, out_dir, root) for p in paths]
+            futures = [pool.submit(analyze_one, p, options, out_dir, root, names[str(p)])
+                       for p in paths]
             for future in as_completed(futures):
                 yield future.result()
     else:
         for p in paths:
-            yield analyze_one(p, options, out_dir, root)
+            yield analyze_one(p, options, out_dir, root, names[str(p)])
 
 
 def progress_step(done: int, total: int, elapsed: float, row: dict) -> Step:

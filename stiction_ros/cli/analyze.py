@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 # loads in main(), so that the help answers in the time Python starts.
 from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.cli.text import description, pipe_safe
-from stiction_ros.errors import DetectorFileError, StictionError
+from stiction_ros.errors import DetectorFileError, InputError, StictionError
 
 if TYPE_CHECKING:
     from stiction_ros.app.analyze import AnalyzeOptions, Say
@@ -111,7 +111,8 @@ def parser() -> argparse.ArgumentParser:
                       '(default: every core this process may use)')
     many.add_argument('--scheduler', metavar='ADDRESS',
                       help='run on this Dask cluster (tcp://host:8786) instead of local processes')
-    many.add_argument('--out-dir', metavar='DIR', help='write a JSON report per recording here')
+    many.add_argument('--out-dir', metavar='DIR', help='write a JSON report per recording here '
+                      '(one recording: its report, named as in a folder run)')
     return p
 
 
@@ -141,6 +142,24 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
         write_json(options.json_path, batch.summary())
         say(f'wrote {options.json_path}')
     return batch
+
+
+def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOptions:
+    """
+    Return ``options`` with its JSON report in ``out_dir`` (one recording, ``--out-dir``).
+
+    A script that audits a folder file by file gets the report where a
+    folder's run would put it, rather than none without a word.
+    """
+    if not out_dir:
+        return options
+    if options.json_path:
+        raise InputError('--out-dir and --json both say where the report of one recording '
+                         'goes; give one of them')
+    from pathlib import Path
+    from stiction_ros.app.batch import report_name
+    return dataclasses.replace(options, json_path=str(
+        Path(out_dir) / report_name(options.input, Path(options.input).parent)))
 
 
 def print_many(batch: Batch) -> int:
@@ -181,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
             if paths is not None:
                 batch = run_many(args, options, paths, say)
             else:
+                options = one_report_in(options, args.out_dir)
                 report = analyze_file(options, say).report
     except DetectorFileError as exc:
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)

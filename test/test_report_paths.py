@@ -1,0 +1,100 @@
+"""Where reports go: never over a recording, never over each other, never merged."""
+
+import json
+import shutil
+
+import pytest
+
+from stiction_ros.app.analyze import AnalyzeOptions
+from stiction_ros.app.batch import expand, report_names
+from stiction_ros.cli.analyze import EXIT_INPUT, main
+from stiction_ros.errors import InputError
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
+from test_analysis_inputs import write_bag
+
+
+@pytest.fixture(scope='module')
+def loop():
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'undershoot')
+    return simulate_loop(cfg, duration=300.0)
+
+
+@pytest.fixture
+def csv(loop, tmp_path):
+    path = tmp_path / 'loop.csv'
+    write_csv(path, loop)
+    return path
+
+
+def test_a_report_over_the_recording_or_over_the_other_report_is_refused(csv, tmp_path,
+                                                                         capsys):
+    before = csv.read_bytes()
+    for argv in ([str(csv), '--json', str(csv)],
+                 [str(csv), '--html', str(tmp_path / '.' / 'loop.csv')],
+                 [str(csv), '--json', str(tmp_path / 'r'), '--html', str(tmp_path / 'r')]):
+        assert main([*argv, '--quiet']) == EXIT_INPUT
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and 'error:' in err and 'overwrite' in err
+    other = tmp_path / 'other.csv'
+    write_csv(other, {'t': [0.0, 1.0], 'op': [1.0, 2.0], 'sp': [0, 0], 'pv': [0, 0],
+                      'mv': [1, 2]})
+    with pytest.raises(InputError, match='looks like a recording'):
+        AnalyzeOptions(str(csv), json_path=str(other))
+    assert csv.read_bytes() == before and not (tmp_path / 'r').exists()
+
+
+def test_a_report_that_cannot_be_written_names_the_option(csv, capsys):
+    assert main([str(csv), '--quiet', '--json', '/proc/no/r.json']) == EXIT_INPUT
+    assert 'cannot write the JSON report (--json) /proc/no/r.json' in capsys.readouterr().err
+
+
+def test_loose_mcap_files_in_a_folder_are_recordings_of_their_own(loop, tmp_path):
+    # Read as one bag before, two recordings' samples were merged without a word.
+    bag = write_bag(tmp_path / 'made', loop)
+    folder = tmp_path / 'runs'
+    folder.mkdir()
+    for name in ('a.mcap', 'b.mcap'):
+        shutil.copy(next(bag.glob('*.mcap')), folder / name)
+    # A recorder killed before its metadata.yaml: files named as rosbag2 names them.
+    killed = folder / 'killed'
+    killed.mkdir()
+    shutil.copy(next(bag.glob('*.mcap')), killed / 'killed_0.mcap')
+    shutil.copy(next(bag.glob('*.mcap')), killed / 'killed_1.mcap')
+    assert expand(str(folder)) == [str(folder / 'a.mcap'), str(folder / 'b.mcap'),
+                                   str(killed)]
+    assert expand(str(killed)) is None and expand(str(bag)) is None
+    summary = tmp_path / 's.json'
+    assert main([str(folder), '--quiet', '--jobs', '1', '--json', str(summary)]) == 0
+    rows = json.loads(summary.read_text())['rows']
+    assert len(rows) == 3 and all(r['ok'] for r in rows)
+    # Each loose file is the whole loop, once: S and J as the simulation drew them.
+    for r in rows[:2]:
+        assert [round(f['S'], 2) for f in r['fits']] == [round(rows[0]['fits'][0]['S'], 2)] * 2
+
+
+def test_reports_of_paths_that_flatten_alike_are_all_kept(csv, tmp_path):
+    col = tmp_path / 'col'
+    for sub in ('a/b', 'a_b'):
+        (col / sub).mkdir(parents=True)
+        shutil.copy(csv, col / sub / 'c.csv')
+    names = report_names([str(col / 'a/b/c.csv'), str(col / 'a_b/c.csv')], col)
+    assert len(set(names.values())) == 2
+    out = tmp_path / 'reports'
+    assert main([str(col), '--quiet', '--jobs', '1', '--out-dir', str(out)]) == 0
+    reports = sorted(out.glob('*.json'))
+    assert len(reports) == 2
+    inputs = {json.loads(p.read_text())['input']['path'] for p in reports}
+    assert inputs == {str(col / 'a/b/c.csv'), str(col / 'a_b/c.csv')}
+    # Names that do not collide stay as they were.
+    one = str(col / 'a/b/c.csv')
+    assert report_names([one], col) == {one: 'a_b_c.csv.json'}
+
+
+def test_out_dir_with_one_recording_writes_its_report_there(csv, tmp_path, capsys):
+    out = tmp_path / 'one'
+    assert main([str(csv), '--quiet', '--out-dir', str(out)]) == 0
+    assert json.loads((out / 'loop.csv.json').read_text())['input']['path'] == str(csv)
+    assert main([str(csv), '--quiet', '--out-dir', str(out), '--json', 'r.json']) == EXIT_INPUT
+    assert 'give one of them' in capsys.readouterr().err
