@@ -188,6 +188,17 @@ def run_hammerstein(held, sample_time, integrating):
     return quantify(held['op'], held['pv'], sample_time, integrating=integrating)
 
 
+def _plain(value):
+    """Return ``value`` as JSON holds it: mappings and lists kept as such, the rest as text."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if value is None or isinstance(value, (bool, int, float)):
+        return value
+    return str(value)
+
+
 def realigned_rows(detection) -> int:
     """Return the rows PV was read late against OP (negative: early; 0 when not realigned)."""
     if detection is None:
@@ -222,7 +233,7 @@ def analyze(record: Record, options: Options | None = None,
     options = options or Options()
     notes = list(record.notes)
     report = {
-        'input': {k: str(v) for k, v in record.source.items()},
+        'input': {str(k): _plain(v) for k, v in record.source.items()},
         'name': record.name, 'start_time': record.start_time,
         'samples': int(record.samples), 'sample_time': float(record.sample_time),
         'valid_samples': int(np.sum(record.valid)),

@@ -117,8 +117,12 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
     for ev in evidence[:EVIDENCE_LINES]:
         add('evidence', ev)
     if len(evidence) > EVIDENCE_LINES:
-        add('', f'(and {len(evidence) - EVIDENCE_LINES} more in the report)')
+        more = len(evidence) - EVIDENCE_LINES
+        add('', f'(and {more} more in the report)' if files else
+            f'(and {more} more: --json FILE or --html FILE writes them all)')
     add('size', size_text(report))
+    for warning in (report.get('input') or {}).get('warnings') or []:
+        add('warning', warning)
     add('excluded', excluded_text(report))
     judged = judged_text(report)
     if judged:
@@ -180,8 +184,9 @@ def size_text(report: dict) -> str:
         return (f'S about {apparent:.2f} % of OP (width of the PV-OP ellipse); J needs MV or a '
                 'reliable Hammerstein fit')
     if ham and ham.get('S') is not None:
+        why = ham.get('reason') or 'see stiction.hammerstein.reason in the report'
         return (f'not given: the Hammerstein fit (S={ham["S"]:.2f} % J={ham["J"]:.2f} %) is '
-                'unreliable, see stiction.hammerstein.reason')
+                f'unreliable: {why}')
     return 'not given'
 
 

@@ -1,6 +1,9 @@
 """
 Repair a bag whose recorder died: rebuild the MCAP summary and ``metadata.yaml``.
 
+A bare ``.mcap`` file (copied out of its bag, or cut short) is repaired the
+same way, without a ``metadata.yaml``.
+
 Every message of every complete chunk is copied into a new, finished MCAP
 file.  The damaged file is kept next to it (``.damaged``), so a repair never
 loses anything, even if it is wrong.
@@ -16,19 +19,27 @@ import yaml
 
 
 def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
-    """Repair the bag directory ``path`` in place; return a one-line summary."""
+    """
+    Repair the bag directory or bare ``.mcap`` file ``path`` in place; return a summary.
+
+    A bag directory gets its ``metadata.yaml`` rebuilt too; a bare file has none.
+    """
     path = Path(path)
-    if not path.is_dir():
-        raise BagReadError(f'{path}: repair works on a bag directory')
-    files = mcap_files(path)
+    if path.is_file() and path.suffix.lower() == '.mcap':
+        folder, files = path.parent, [path]
+        tmp = folder / f'.repair-{path.name}'
+    elif path.is_dir():
+        folder, files = path, mcap_files(path)
+        tmp = path / '.repair'
+    else:
+        raise BagReadError(f'{path}: repair works on a bag directory or an .mcap file')
     if len(files) != 1:
         raise BagReadError(f'{path}: repair handles one .mcap file per bag, found {len(files)}')
     bag = read_bag(path)
-    if bag.complete and (path / 'metadata.yaml').is_file():
+    if bag.complete and (path.is_file() or (path / 'metadata.yaml').is_file()):
         return f'{path}: complete, {sum(t.count for t in bag.topics.values())} messages; ' \
                'nothing to repair'
     src = files[0]
-    tmp = path / '.repair'
     if tmp.exists():
         shutil.rmtree(tmp)
     writer = BagWriter(tmp, compression=compression, file_name=src.name)
@@ -49,7 +60,8 @@ def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
     damaged = src.with_name(src.name + '.damaged')
     os.replace(src, damaged)
     os.replace(tmp / src.name, src)
-    os.replace(tmp / 'metadata.yaml', path / 'metadata.yaml')
+    if path.is_dir():
+        os.replace(tmp / 'metadata.yaml', folder / 'metadata.yaml')
     shutil.rmtree(tmp)
     return (f'{path}: recovered {len(order)} messages on {len(bag.topics)} topics; '
             f'the original is kept as {damaged.name}')

@@ -5,6 +5,8 @@ Examples::
 
     stiction-bag info out/demo_bag
     stiction-bag repair out/demo_bag     # rebuilds the index and metadata.yaml
+
+Exit status 2, with one line on stderr, when the bag cannot be read or repaired.
 """
 
 import argparse
@@ -36,14 +38,15 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog='stiction-bag', description=description(__doc__))
     sub = ap.add_subparsers(dest='command', required=True)
     sub.add_parser('info', help='topics, types and message counts').add_argument('bag')
-    rp = sub.add_parser('repair', help='rebuild the index and metadata.yaml of a killed bag')
+    rp = sub.add_parser('repair', help='rebuild the index and metadata.yaml of a killed bag '
+                        '(a bag directory, or a bare .mcap file: the index only)')
     rp.add_argument('bag')
     args = ap.parse_args(argv)
     try:
         print(info(args.bag) if args.command == 'info' else repair_bag(args.bag))
     except (BagReadError, BagError) as err:
         print(f'stiction-bag: error: {err}', file=sys.stderr)
-        return 1
+        return 2
     return 0
 
 

@@ -15,10 +15,14 @@ Examples::
     loop config/concentration_loop.yaml --inject op:drop=0.1,jitter=0.3 --respawn --record b
 
 Node logs go to ``--logs`` (default: next to the bag, or a temporary directory).
+Exit status: 0 the loop ran; 1 it could not run (a node failed, a bag in the
+way); 2 bad input or option, before anything started; 128 + the signal when
+interrupted.
 """
 
 import argparse
 import json
+import math
 import os
 from pathlib import Path
 import signal
@@ -382,8 +386,13 @@ def main(argv=None):
             for path in write_node_params(cfg, args.write_node_params):
                 print(f'loop: wrote {path}', file=sys.stderr)
             return 0
-        if args.rtf < 0:
-            raise ConfigError('--rtf must be positive')
+        if not (math.isfinite(args.rtf) and args.rtf >= 0):
+            raise ConfigError(f'--rtf must be 0 (wall time) or a positive factor, got '
+                              f'{args.rtf:g}')
+        if args.duration is not None and not (math.isfinite(args.duration)
+                                              and args.duration > 0):
+            raise ConfigError(f'--duration must be a positive number of seconds, got '
+                              f'{args.duration:g}')
         logs = args.logs or (str(Path(args.record).resolve()) + '.logs' if args.record else None)
         t0 = time.monotonic()
         mode = f'rtf {args.rtf:g}' if args.rtf else 'wall time'
@@ -407,9 +416,14 @@ def main(argv=None):
             print(f'bag: {args.record or bag}')
             if args.json:
                 Path(args.json).write_text(json.dumps(summary, indent=2), encoding='utf-8')
-    except (StictionError, OSError) as err:
+    except (LoopError, OSError) as err:
+        # The loop was set up and could not run (a node that failed, a bag in the way).
         print(f'loop: error: {err}', file=sys.stderr)
         return 1
+    except StictionError as err:
+        # Bad input (the file, a case, an option): nothing was started.
+        print(f'loop: error: {err}', file=sys.stderr)
+        return 2
     except KeyboardInterrupt as err:
         # Processes.stop has stopped every node (a Ctrl-C during the stop waits for it).
         print('loop: interrupted; nodes stopped, bag finalised', file=sys.stderr)

@@ -8,6 +8,7 @@ Examples::
 """
 
 import argparse
+import math
 import sys
 
 from stiction_ros.cli.text import description, pipe_safe
@@ -38,14 +39,22 @@ def main(argv=None):
     ap.add_argument('-o', '--output', default='-', help='CSV file to write (default: stdout)')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        ap.error(f'--duration must be a positive number of seconds, got {args.duration:g}')
     try:
         cfg = load_loop(resolve_config(args.config), args.case, parse_overrides(args.set))
         show = not args.quiet and sys.stderr.isatty()
         data = simulate_loop(cfg, args.duration, _progress if show else None)
+        write_csv(sys.stdout if args.output == '-' else args.output, data)
     except (ConfigError, ModelError, PlantError, SourceError) as err:
         print(f'stiction-sim: error: {err}', file=sys.stderr)
         return 2
-    write_csv(sys.stdout if args.output == '-' else args.output, data)
+    except BrokenPipeError:
+        raise                       # a reader that stopped early: pipe_safe's to handle
+    except OSError as err:
+        print(f'stiction-sim: error: cannot write {args.output}: {err.strerror or err}',
+              file=sys.stderr)
+        return 2
     if args.output != '-' and not args.quiet:
         print(f'stiction-sim: wrote {len(data["t"])} samples to {args.output}', file=sys.stderr)
     return 0

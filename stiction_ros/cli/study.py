@@ -15,6 +15,7 @@ import platform
 import sys
 
 from stiction_ros.cli.text import description, pipe_safe
+from stiction_ros.errors import StictionError
 from stiction_ros.resources import config_file
 from stiction_ros.study.reproduction import run_study, write_report
 
@@ -42,16 +43,26 @@ def main(argv=None):
                     help='output directory (default: out/study; `make reproduce` uses docs)')
     args = ap.parse_args(argv)
     config = Path(args.config) if args.config else config_file('concentration_loop.yaml')
+    if not config.is_file():
+        ap.error(f'--config {config}: no such file')
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
 
     def say(msg):
         print(f'stiction-study: {msg}', file=sys.stderr, flush=True)
 
-    results = run_study(config, out, say)
-    (out / 'reproduction.json').write_text(json.dumps(results, indent=1, default=float))
-    write_report(results, out / 'REPRODUCTION.md', datetime.date.today().isoformat(),
-                 machine_description())
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        results = run_study(config, out, say)
+        (out / 'reproduction.json').write_text(json.dumps(results, indent=1, default=float))
+        write_report(results, out / 'REPRODUCTION.md', datetime.date.today().isoformat(),
+                     machine_description())
+    except StictionError as err:
+        print(f'stiction-study: error: {err}', file=sys.stderr)
+        return 2
+    except OSError as err:
+        print(f'stiction-study: error: cannot write to {out}: {err.strerror or err}',
+              file=sys.stderr)
+        return 2
     say(f'wrote {out / "REPRODUCTION.md"} and {len(results["cases"]) + 1} figures')
     for c in results['cases']:
         o = c['oscillation']['op']

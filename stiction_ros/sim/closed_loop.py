@@ -7,7 +7,7 @@ loop runs the same objects in three nodes.
 """
 
 from os import PathLike
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence, TextIO
 
 import numpy as np
 
@@ -140,8 +140,20 @@ def run_compiled(out: dict[str, Floats], valve: ValveModel, plant: TransferFunct
     pid._pv_prev = float(pc[2]) if pc[3] > 0.5 else None
 
 
-def write_csv(path: str | PathLike[str], data: Mapping[str, Floats],
+def write_csv(path: str | PathLike[str] | TextIO, data: Mapping[str, Floats],
               columns: Sequence[str] = COLUMNS) -> None:
-    """Write the named columns of a simulation result to CSV with a header row."""
-    arr = np.column_stack([data[c] for c in columns])
-    np.savetxt(path, arr, delimiter=',', header=','.join(columns), comments='', fmt='%.10g')
+    """
+    Write the named columns of a simulation result to CSV with a header row.
+
+    Each value is written in the fewest digits that read back as the same
+    float: an exact model must still fit with MSE 0, and a slip that falls
+    on a stick band's edge must not move a sample when the file is read.
+    """
+    arr = np.column_stack([np.asarray(data[c], dtype=np.float64) for c in columns])
+    lines = [','.join(columns)] + [','.join(map(repr, row)) for row in arr.tolist()]
+    text = '\n'.join(lines) + '\n'
+    if hasattr(path, 'write'):
+        path.write(text)
+    else:
+        with open(path, 'w', encoding='utf-8') as f:
+            f.write(text)

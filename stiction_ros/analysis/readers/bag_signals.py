@@ -134,6 +134,9 @@ def read_bag_record(path, namespace=None, held=True):
     source = {'path': str(path), 'format': 'bag', 'stamps': stamp_kind,
               'topics': {name: topic.name for name, topic in topics.items()},
               'phases': phases, 'sampling': f'the spacing of the {topics["op"].name} messages'}
+    if not bag.complete or bag.warnings:
+        # Damage to the file itself: the terminal shows these, not only the notes.
+        source['warnings'] = list(bag.warnings) or [notes[0]]
     record = assemble(signals, ts, reasons=reasons, notes=notes, source=source,
                       start_time=start, name=prefix or Path(path).name,
                       time_origin=float(origin))

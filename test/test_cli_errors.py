@@ -1,0 +1,102 @@
+"""Bad options and damaged files: one line, the documented exit status, nothing lost."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from stiction_ros.cli import analyze, bag as bag_cli, loop as loop_cli, sim, study
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
+from test_analysis_inputs import write_bag
+
+
+@pytest.fixture(scope='module')
+def loop():
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'undershoot')
+    return simulate_loop(cfg, duration=300.0)
+
+
+def _one_line(capsys, *words):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err and 'Traceback' not in '\n'.join(err)
+    assert all(w in err[-1] for w in words), err[-1]
+
+
+@pytest.mark.parametrize('value', ['-5', 'nan'])
+def test_stiction_sim_refuses_a_duration_that_is_no_time(value, capsys):
+    with pytest.raises(SystemExit) as stop:
+        sim.main(['concentration_loop.yaml', '--quiet', '--duration', value])
+    assert stop.value.code == 2
+    _one_line(capsys, '--duration must be a positive number of seconds')
+
+
+def test_stiction_sim_names_a_csv_it_cannot_write(capsys):
+    assert sim.main(['concentration_loop.yaml', '--quiet', '--duration', '10',
+                     '-o', '/nonexistent-dir/x/s.csv']) == 2
+    _one_line(capsys, 'cannot write /nonexistent-dir/x/s.csv')
+
+
+def test_a_simulated_csv_reads_back_bit_for_bit(loop, tmp_path):
+    # Ten digits moved a slip by a sample on the stick band's edge: J 2.00 read as 1.99.
+    path = tmp_path / 'loop.csv'
+    write_csv(path, loop)
+    back = np.genfromtxt(path, delimiter=',', names=True)
+    for name in ('t', 'sp', 'op', 'mv', 'pv'):
+        np.testing.assert_array_equal(back[name], loop[name])
+
+
+def test_stiction_study_names_a_missing_loop_file(capsys):
+    with pytest.raises(SystemExit) as stop:
+        study.main(['--config', 'no-such-loop.yaml', '--out', '/nonexistent-dir/study'])
+    assert stop.value.code == 2
+    _one_line(capsys, '--config no-such-loop.yaml: no such file')
+
+
+def test_loop_checks_its_options_before_starting_a_node(capsys):
+    # Nothing may start: the error comes before the first node would be spawned.
+    assert loop_cli.main(['concentration_loop.yaml', '--duration', '-5', '--rtf', '100']) == 2
+    _one_line(capsys, '--duration must be a positive number of seconds')
+    assert loop_cli.main(['no-such-loop.yaml']) == 2
+    _one_line(capsys, 'no-such-loop.yaml')
+
+
+def test_a_bare_mcap_cut_short_is_flagged_on_the_terminal_and_repaired_in_place(
+        loop, tmp_path, capsys):
+    made = write_bag(tmp_path / 'made', loop, chunk_size=1024)
+    whole = next(made.glob('*.mcap')).read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(whole[:len(whole) // 2])
+    assert analyze.main([str(cut), '--quiet', '--no-hammerstein']) == 0
+    out = capsys.readouterr().out
+    warning = [line for line in out.splitlines() if line.strip().startswith('warning:')]
+    assert len(warning) == 1 and 'ends early' in warning[0]
+    assert f'stiction-bag repair {cut}' in warning[0]
+    assert bag_cli.main(['repair', str(cut)]) == 0
+    assert 'recovered' in capsys.readouterr().out
+    # The damaged original is kept; the repaired file reads as complete.
+    assert (tmp_path / 'cut.mcap.damaged').read_bytes() == whole[:len(whole) // 2]
+    assert bag_cli.main(['info', str(cut)]) == 0
+    assert '(complete)' in capsys.readouterr().out
+    assert analyze.main([str(cut), '--quiet', '--no-hammerstein', '--json',
+                         str(tmp_path / 'r.json')]) == 0
+    assert 'warnings' not in json.loads((tmp_path / 'r.json').read_text())['input']
+
+
+def test_stiction_bag_errors_exit_2(tmp_path, capsys):
+    assert bag_cli.main(['info', str(tmp_path / 'none')]) == 2
+    _one_line(capsys, 'stiction-bag: error:')
+    (tmp_path / 'x.txt').write_text('not a bag')
+    assert bag_cli.main(['repair', str(tmp_path / 'x.txt')]) == 2
+    _one_line(capsys, 'a bag directory or an .mcap file')
+
+
+def test_report_input_fields_are_json_objects(loop, tmp_path):
+    made = write_bag(tmp_path / 'b', loop)
+    shutil.rmtree(tmp_path / 'b.logs', ignore_errors=True)
+    assert analyze.main([str(made), '--quiet', '--no-hammerstein', '--json',
+                         str(tmp_path / 'r.json')]) == 0
+    got = json.loads((tmp_path / 'r.json').read_text())['input']
+    assert got['topics']['op'] == '/loop1/op' and isinstance(got['phases']['pv'], float)
