@@ -77,6 +77,10 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     assert [r['condition'] for r in study.rows] == [c[0] for c in CONDITIONS]
     for r in study.rows:
         assert r['tp'] + r['fn'] == int(study.label.sum())
+        assert 0 <= r['lost_under_sampled'] <= r['lost_refused'] <= r['lost_finds']
+    assert study.rows[0]['lost_refused'] == 0
+    # A record has a refusal's reason exactly where it has no probability.
+    np.testing.assert_array_equal(np.isnan(study.probability), study.refusal != '')
     md, js = tmp_path / 'r.md', tmp_path / 'r.json'
     assert main(['--first-seed', '3600000', '--seeds', '6', '--jobs', '1',
                  '--skew-seeds', '30', '--markdown', str(md), '--json', str(js)]) == 0

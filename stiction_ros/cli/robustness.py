@@ -71,22 +71,26 @@ def markdown(study: dict) -> str:
         'analyzer cannot judge counted as "no stiction". "with the band": the answers the '
         'analyzer gives (cannot tell at 0.25-0.75 counted as "no stiction"), and on the '
         'decided records alone. "new flags": healthy records called sticky at 0.5 that were '
-        'not as simulated; "lost": sticky records found as simulated and not here. Median '
+        'not as simulated; "lost": sticky records found as simulated and not here, and of '
+        'those, how many were refused (cannot be judged), and how many of these because the '
+        'loop now cycles in under 10 samples, a refusal the issue asks for. Median '
         'shift: of the probability against the record as simulated. "realigned": records '
         'the clock-skew check (DETECTION.md, section 1) read shifted, and of those, by the '
         'skew the condition put in; "without the check": the same records read as given '
         '(at 0.5, and with the band).',
         '',
-        '| condition | at 0.5 | sticky found | healthy flagged | new flags | lost | with the '
+        '| condition | at 0.5 | sticky found | healthy flagged | new flags | lost | lost: '
+        'refused (under-sampled) | with the '
         'band | on the decided (share) | refused | median shift healthy / sticky | '
         'realigned (right) | without the check: at 0.5 / band |',
-        '|---|---|---|---|---|---|---|---|---|---|---|---|',
+        '|---|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
     for r in study['rows']:
         lines.append(
             f"| {r['condition']} | **{_f(r['balanced_accuracy'])}** | {r['tp']}/"
             f"{r['tp'] + r['fn']} | {r['fp']}/{r['fp'] + r['tn']} | {r['new_flags']} | "
-            f"{r['lost_finds']} | {_f(r['banded_balanced_accuracy'])} | "
+            f"{r['lost_finds']} | {r['lost_refused']} ({r['lost_under_sampled']}) | "
+            f"{_f(r['banded_balanced_accuracy'])} | "
             f"{_f(r['decided_balanced_accuracy'])} ({r['decided_share']:.2f}) | "
             f"{r['refused']} | {_f(r['median_shift_healthy'], 2)} / "
             f"{_f(r['median_shift_sticky'], 2)} | {r['realigned']} ({r['realigned_right']}) | "

@@ -30,6 +30,9 @@ from stiction_ros.study.distortions import compress, every, lag_filter, shift_pv
 
 # A distortion of (trend, PV noise SD).
 Distortion = Callable[[Trend, float], Trend]
+# The refusal the issue asks for where a regular cycle spans under 10 samples
+# (resolve.cycle_judgeable), or where OP and PV alternate from sample to sample.
+UNDER = 'under_sampled'
 
 
 def _as_is(t: Trend, noise: float) -> Trend:
@@ -85,7 +88,11 @@ CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
 
 def _read(seed: int) -> tuple:
     """
-    Return (seed, label, kind, scored, [(answer, probability, shift) per condition], as given).
+    Return one seed's label, kind, whether it is scored, and its answers.
+
+    That is (seed, label, kind, scored, [(answer, probability, shift, refusal)
+    per condition], as given); ``refusal`` is the code of the reason a record
+    was not judged ('' when it was).
 
     ``as given``: (answer, probability) of each condition read without the
     clock-skew check (the same as with it where the check shifted nothing).
@@ -115,7 +122,7 @@ def _read(seed: int) -> tuple:
         if d.probability is None and not out:
             # Not judgeable as simulated: not a record make accuracy scores.
             return int(seed), bool(sc.label), kind, False, [], []
-        out.append((d.answer, d.probability, shift))
+        out.append((d.answer, d.probability, shift, '' if d.judge.ok else d.judge.code))
         given.append((d0.answer, d0.probability))
     return int(seed), bool(sc.label), kind, True, out, given
 
@@ -130,6 +137,7 @@ class Robustness:
     answer: np.ndarray          # (records, conditions): the analyzer's three answers
     probability: np.ndarray     # (records, conditions); NaN where the record was not judged
     shift: np.ndarray           # (records, conditions): rows the clock-skew check realigned by
+    refusal: np.ndarray         # (records, conditions): why not judged ('' where judged)
     given_answer: np.ndarray    # the same two read without the check
     given_probability: np.ndarray
     seconds: float
@@ -164,6 +172,10 @@ class Robustness:
                 'refused': int(np.isnan(p).sum()),
                 'new_flags': int(np.sum(~y & forced & ~ref)),
                 'lost_finds': int(np.sum(y & ~forced & ref)),
+                # A find lost to a refusal the issue asks for (a cycle under 10 samples)
+                # is not the same finding as one the model reads lower.
+                'lost_refused': int(np.sum(y & ref & np.isnan(p))),
+                'lost_under_sampled': int(np.sum(y & ref & (self.refusal[:, j] == UNDER))),
                 'median_shift_healthy': _median_shift(p, self.probability[:, 0], ~y),
                 'median_shift_sticky': _median_shift(p, self.probability[:, 0], y)}
 
@@ -193,10 +205,11 @@ def run(seeds: range, jobs: int = 1, say=None) -> Robustness:
     ans = np.array([[c[0] for c in r[4]] for r in kept])
     prob = np.array([[np.nan if c[1] is None else c[1] for c in r[4]] for r in kept])
     shift = np.array([[c[2] for c in r[4]] for r in kept], dtype=np.int64)
+    refusal = np.array([[c[3] for c in r[4]] for r in kept], dtype=object)
     ans0 = np.array([[c[0] for c in r[5]] for r in kept])
     prob0 = np.array([[np.nan if c[1] is None else c[1] for c in r[5]] for r in kept])
     return Robustness(seeds, np.array([r[1] for r in kept]), np.array([r[2] for r in kept]),
-                      ans, prob, shift, ans0, prob0, time.perf_counter() - t0,
+                      ans, prob, shift, refusal, ans0, prob0, time.perf_counter() - t0,
                       len(got) - len(kept), np.array([r[0] for r in kept], dtype=np.int64))
 
 
