@@ -279,3 +279,12 @@ def test_the_landscape_of_a_near_zero_mse_is_coloured_relative_to_its_minimum(pa
     assert check_png(png)[0] > 400
     # The file beside the page is the one the page embeds.
     assert base64.b64encode(png).decode() in pages['undershoot'][0].read_text()
+
+
+def test_a_loop_without_a_cycle_shows_no_measured_zeros():
+    from stiction_ros.viz.report_html import _oscillation
+    html = '\n'.join(_oscillation({'oscillating': False, 'period_s': None, 'amplitude': 0.0,
+                                   'regularity': 0.0, 'n_cycles': 0.0,
+                                   'reason': 'no regular cycle'}))
+    assert 'no regular cycle' in html
+    assert 'amplitude' not in html and 'cycles in the record' not in html

@@ -133,7 +133,11 @@ def test_evidence_words_say_what_the_figures_say():
     assert 'yamashita on its own: stiction (28 of 29 informative samples)' in lines
     leaned = {'start': -0.27, 'score': 3.78, 'contributions': [
         {'feature': 'cnn_logit', 'value': 2.35, 'log_odds': 0.87}]}
-    assert 'from -0.27, before any figure is read, to +3.78' in leaned_line(leaned)
+    assert 'from -0.27, before any figure is read, to +3.78)' in leaned_line(leaned)
+    # Named in words beside the name, and the score tied to the probability shown.
+    line = leaned_line(leaned, 0.9512)
+    assert "small network's reading of the trend (cnn_logit) = 2.35 (+0.87)" in line
+    assert 'to +3.78, which the calibration map reads as a probability of 0.95)' in line
     fit = {'model': 'kano', 'S': 2.98, 'J': 0.0, 'mse': 1.3, 'S_interval': [2.74, 3.96],
            'improvement': 0.53}
     assert '(95 % range 2.74-3.96)' in from_fits([fit])[3]

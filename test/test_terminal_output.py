@@ -204,3 +204,27 @@ def test_plain_lines_wrap_to_the_width_and_count_only_now_and_then(monkeypatch):
     # Started at 1 s: a line at 11, 21 and 31 s, then the end once.
     assert counted == ['candidate fits 11/32, effect 11', 'candidate fits 21/32, effect 21',
                        'candidate fits 31/32, effect 31', 'candidate fits 32/32, effect 32']
+
+
+def test_after_explain_the_terminal_gives_the_explained_size_and_the_friction_figures():
+    # The size line is the plain model's; with a lag on the position reading it reads
+    # J 0 for a valve of J 1 (demo part 2): the explained model's size must follow.
+    from stiction_ros.app.report_text import _mismatch_lines
+    report = {'stiction': {'detected': True},
+              'baseline': {'S': 3.086, 'J': 0.001, 'mse_fit': 0.587, 'mse_holdout': 0.8185},
+              'mismatch': {'effect': 'measurement_lag', 'confidence': 1.0, 'explanation': '',
+                           'effects': [], 'mse_holdout': 0.05027, 'friction': True,
+                           'friction_kind': 'stiction',
+                           'model': {'name': 'kano+measurement_lag',
+                                     'params': {'S': 2.974, 'J': 0.981,
+                                                'time_constant_s': 3.059}}},
+              'frictionless': {'dead_time_s': 0.0, 'lag_s': 4.17, 'offset': 0.0, 'gain': 1.0,
+                               'stages': ['tau'], 'mse_holdout': 0.6698}}
+    text = _mismatch_lines(report)
+    assert ('explained model: kano+measurement_lag S=2.974 J=0.981 (time_constant_s 3.059)'
+            in text)
+    assert ('friction: stiction claimed (held-out MSE of the explained model 0.05027, of the '
+            'best valve without friction 0.6698)') in text
+    report['mismatch'].update(friction=False, friction_kind='none', model=None)
+    text = _mismatch_lines(report)
+    assert 'explained model:' not in text and '\nfriction: not claimed\n' in text

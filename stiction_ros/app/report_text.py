@@ -233,6 +233,15 @@ def _mismatch_lines(report):
     line += (f'\nmismatch: {", ".join(names) or m["effect"]} (confidence '
              f'{m["confidence"]:.2f}): {told}\nheld-out MSE: plain '
              f'{b["mse_holdout"]:.4g} -> explained {m["mse_holdout"]:.4g}')
+    model = m.get('model') or {}
+    params = model.get('params') or {}
+    if 'S' in params and 'J' in params:
+        # The size line above is the plain model's; the explained model sizes the valve
+        # with the missing physics in place.
+        rest = ', '.join(f'{k} {v:.4g}' for k, v in params.items() if k not in ('S', 'J'))
+        line += (f'\nexplained model: {model.get("name", "")} S={params["S"]:.3f} '
+                 f'J={params["J"]:.3f}' + (f' ({rest})' if rest else '')
+                 + ": the valve's own size, with the missing physics in place")
     if m.get('note'):
         line += f'\nnote: {m["note"]}'
     if report['stiction'].get('detected') and m.get('friction') is False:
@@ -256,7 +265,16 @@ def _chain_lines(report):
             f'{f["lag_s"]:.3g} s, offset {f["offset"]:+.3g} %, gain {f["gain"]:.4g} (stages '
             f'kept: {", ".join(f["stages"]) or "none"}), held-out MSE {f["mse_holdout"]:.4g},'
             f' {versus} the plain friction model ({plain:.4g})'
-            f'\nfriction: {FRICTION_WORDS[kind]}')
+            f'\nfriction: {FRICTION_WORDS[kind]}{_friction_because(report, f, kind)}')
+
+
+def _friction_because(report, frictionless, kind):
+    """Return the two held-out MSEs to read the friction line against (not the test)."""
+    explained = report['mismatch'].get('mse_holdout')
+    if explained is None or kind == 'none':
+        return ''
+    return (f' (held-out MSE of the explained model {explained:.4g}, of the best valve '
+            f'without friction {frictionless["mse_holdout"]:.4g})')
 
 
 def batch_row_text(row: dict) -> str:

@@ -114,6 +114,10 @@ def _fits(report: dict) -> list:
 def _oscillation(osc: dict) -> list:
     rows = [['oscillating', 'yes' if osc.get('oscillating') else 'no',
              'a regular cycle in the control error SP - PV']]
+    if not osc.get('oscillating') and not osc.get('period_s'):
+        # No cycle found: an amplitude or a count of 0 would read as measured.
+        rows.append(['why', clean(osc.get('reason', '')), ''])
+        return ['<h2>Oscillation</h2>', table(['quantity', 'value', 'meaning'], rows)]
     if osc.get('period_s') is not None:
         rows.append(['period', num(osc['period_s'], unit='s'),
                      'from the zero crossings of its autocorrelation'])

@@ -18,6 +18,7 @@ import numpy as np
 
 from stiction_ros.analysis.detection import cnn, model_file, stack
 from stiction_ros.analysis.detection import interpolated, timing
+from stiction_ros.analysis.detection.feature_words import words
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
@@ -94,20 +95,23 @@ def load_model(path: str | None = None) -> model_file.TreeModel:
     return _model(None if path is None else str(path))
 
 
-def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
+def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
+                   fresh_only: bool = False) -> list:
     """
     Return the evidence as sentences: which test saw what, where in time.
 
     ``rows`` maps a sample the features read to its row in the record (held
-    rows dropped); None when they are the same.
+    rows dropped); None when they are the same.  ``fresh_only``: held rows
+    were dropped, so a signature's own counts are of the fresh rows.
     """
     def _t(k: int, ts: float) -> str:
         return f'{record_row(k, rows) * ts:.0f} s'
     out = []
     st = ev['stuck']
     for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:
-        out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled {travel:.3g} while the '
-                   f'valve proxy stayed within its noise')
+        out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled over {travel:.3g} '
+                   "(OP's units, % of its range on most plants) while the valve proxy stayed "
+                   'within its noise')
     if st.stuck:
         # Integral action on a constant error ramps OP in a straight line; a
         # loop holding PV against a load that wanders has neither.
@@ -139,8 +143,11 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None) -> list:
                 continue
             # One signature's own vote, which the detector weighs with the rest:
             # said as such, so that it does not read as the verdict.
+            # With held rows dropped its counts differ from the report's signature table,
+            # which reads every row: say which rows these are.
+            rows_read = ', on the fresh rows the detector read' if fresh_only else ''
             out.append(f'{name} on its own: {"stiction" if s.stiction else "no stiction"} '
-                       f'({s.reason})')
+                       f'({s.reason}{rows_read})')
     return out
 
 
@@ -180,7 +187,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     rows = held.kept if held.count else None
     if skew.shift:
         rows = kept if rows is None else rows[kept]
-    lines = evidence_lines(ev, sample_time, rows)
+    lines = evidence_lines(ev, sample_time, rows, fresh_only=bool(held.count))
     if held.count:
         # A row or two held in 751 is routine; a third of the record is not.
         lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
@@ -205,7 +212,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     reason = reason_of(p)
     leaned = leaned_on(model, vec, logit)
     # After a notable share of held rows, which says how much of the trend was read.
-    lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned))
+    lines.insert(1 if held.count and held.share >= NOTABLE else 0, leaned_line(leaned, p))
     # Judged but declined: a script tells this from a record that cannot be judged.
     return Detection(answer, round(p, 4), reason, judge, lines, ev['features'],
                      ev['period_problem'], info,
@@ -274,12 +281,21 @@ def leaned_on(model: model_file.TreeModel, vec: np.ndarray, large_logit: float |
                                'log_odds': round(float(per[i]), 3)} for i in order]}
 
 
-def leaned_line(leaned: dict) -> str:
-    """Return the terminal sentence of :func:`leaned_on`."""
+def leaned_line(leaned: dict, probability: float | None = None) -> str:
+    """
+    Return the terminal sentence of :func:`leaned_on`.
+
+    The score is in log-odds before calibration; ``probability``, when given,
+    is what the calibration map reads it as, said so that the two numbers on
+    the screen are not taken for one scale.
+    """
     def one(c: dict) -> str:
         value = 'missing' if c['value'] is None else f'{c["value"]:.3g}'
-        return f'{c["feature"]} = {value} ({c["log_odds"]:+.2f})'
+        return f'{words(c["feature"])} = {value} ({c["log_odds"]:+.2f})'
     parts = [one(c) for c in leaned['contributions']]
+    mapped = ('' if probability is None else
+              f', which the calibration map reads as a probability of '
+              f'{probability_text(probability)}')
     return (f'the learned detector leaned most on {", ".join(parts)} (log-odds toward '
             f'stiction; all the parts together move its score from {leaned["start"]:+.2f}, '
-            f'before any figure is read, to {leaned["score"]:+.2f})')
+            f'before any figure is read, to {leaned["score"]:+.2f}{mapped})')
