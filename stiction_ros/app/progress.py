@@ -66,11 +66,16 @@ def terminal_width() -> int:
 
 
 def wrap(text: str, width: int) -> list[str]:
-    """Return ``text`` as lines of at most ``width`` characters, continuations indented."""
+    """
+    Return ``text`` as lines of at most ``width`` characters, continuations indented.
+
+    A word longer than ``width`` (a file's path) keeps a line of its own, whole,
+    so that it can still be copied.
+    """
     lines = []
     for part in text.splitlines() or ['']:
         lines += textwrap.wrap(part, width, subsequent_indent=CONTINUATION,
-                               break_on_hyphens=False) or ['']
+                               break_on_hyphens=False, break_long_words=False) or ['']
     return lines
 
 

@@ -139,8 +139,8 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
     for line in text.split('\n'):
         # A labelled line continues under its text, any other one a little indented.
         indent = ' ' * (2 + LABEL_WIDTH if line.startswith('  ') else 4)
-        out += textwrap.wrap(line, width, subsequent_indent=indent,
-                             break_on_hyphens=False) or ['']
+        out += textwrap.wrap(line, width, subsequent_indent=indent, break_on_hyphens=False,
+                             break_long_words=False) or ['']
     return '\n'.join(out)
 
 
