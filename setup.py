@@ -53,7 +53,6 @@ setup(
     maintainer_email='dev@stiction-ros.invalid',
     description='Control-valve stiction models in live ROS 2 loops, and their diagnosis.',
     license='Apache-2.0',
-    tests_require=['pytest'],
     cmdclass={'install': InstallAndPrecompile},
     entry_points={
         'console_scripts': [
