@@ -58,3 +58,22 @@ def test_bad_input_publishes_an_error_and_exits_2(diagnostics, tmp_path):
     assert finish(proc) == 2
     (status,) = diagnostics[0].status
     assert status.level == DiagnosticStatus.ERROR and "no 'op' column" in status.message
+
+
+def test_a_bag_cut_short_is_analysed_and_the_damage_logged_as_a_warning(diagnostics, tmp_path):
+    from stiction_ros.resources import config_file
+    from stiction_ros.sim.closed_loop import simulate_loop
+    from stiction_ros.sim.loop_config import load_loop
+    from test_analysis_inputs import write_bag
+    loop = simulate_loop(load_loop(config_file('concentration_loop.yaml'), 'undershoot'),
+                         duration=300.0)
+    made = write_bag(tmp_path / 'made', loop, chunk_size=1024)
+    whole = next(made.glob('*.mcap')).read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(whole[:len(whole) // 2])
+    proc = start_node('analyzer', {'input': str(cut), 'linger': 10.0}, log_dir=str(tmp_path))
+    wait_for(lambda: diagnostics, timeout=120, what='a DiagnosticArray')
+    log = (tmp_path / 'analyzer.log')
+    assert finish(proc) == 0, log.read_text()
+    warned = [line for line in log.read_text().splitlines() if 'ends early' in line]
+    assert warned and 'WARN' in warned[0], log.read_text()[-2000:]

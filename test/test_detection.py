@@ -271,7 +271,9 @@ def test_a_verdict_names_the_figures_the_trees_leaned_on():
                       d.probability, atol=0.02)
     names = [c['feature'] for c in leaned['contributions']]
     assert len(names) == 3 and set(names) <= set(d.features) | {'cnn_large_logit'}
-    assert d.evidence[0].startswith('the learned detector leaned most on ' + names[0])
+    from stiction_ros.analysis.detection.feature_words import words
+    assert d.evidence[0].startswith('the learned detector leaned most on ' + words(names[0]))
+    assert d.evidence[0].endswith(f'as a probability of {d.probability:.2f})')
 
 
 def test_a_stacked_detector_weighs_the_large_network_in(tmp_path):

@@ -106,6 +106,9 @@ class AnalyzerNode(Node):
             status.level, status.message = level_of(report, v['error_S'])
             status.values = key_values(report)
             self.get_logger().info(status.message)
+            # Damage to the recording itself (a bag cut short): read from what was readable.
+            for warning in report['input'].get('warnings') or []:
+                self.get_logger().warning(warning)
             code = 0
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
