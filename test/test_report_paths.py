@@ -98,3 +98,28 @@ def test_out_dir_with_one_recording_writes_its_report_there(csv, tmp_path, capsy
     assert json.loads((out / 'loop.csv.json').read_text())['input']['path'] == str(csv)
     assert main([str(csv), '--quiet', '--out-dir', str(out), '--json', 'r.json']) == EXIT_INPUT
     assert 'give one of them' in capsys.readouterr().err
+
+
+def test_a_killed_recorders_bag_given_as_dot_is_one_bag(loop, tmp_path, monkeypatch):
+    bag = write_bag(tmp_path / 'killed', loop)
+    (bag / 'metadata.yaml').unlink()
+    monkeypatch.chdir(bag)
+    assert expand('.') is None
+    out = tmp_path / 'out'
+    assert main(['.', '--quiet', '--no-hammerstein', '--out-dir', str(out)]) == 0
+    assert [p.name for p in out.iterdir()] == ['killed.json']
+
+
+def test_an_unwritable_out_dir_is_each_rows_error_not_the_end_of_the_audit(csv, tmp_path):
+    folder = tmp_path / 'two'
+    folder.mkdir()
+    for name in ('a.csv', 'b.csv'):
+        shutil.copy(csv, folder / name)
+    blocked = tmp_path / 'file'
+    blocked.write_text('not a folder')
+    summary = tmp_path / 's.json'
+    assert main([str(folder), '--quiet', '--jobs', '1', '--no-hammerstein', '--out-dir',
+                 str(blocked), '--json', str(summary)]) == EXIT_INPUT
+    rows = json.loads(summary.read_text())['rows']
+    assert len(rows) == 2 and all('cannot write its report (--out-dir)' in r['error']
+                                  for r in rows)

@@ -243,7 +243,7 @@ class AnalyzeOptions:
             if Path(path).suffix.lower() in RECORDING_SUFFIXES and Path(path).exists():
                 raise InputError(f'{name} ({flags[name]}) {path} exists and looks like a '
                                  'recording: the report would overwrite it; name a .json or '
-                                 '.html file')
+                                 '.html file (a report is never given a recording suffix)')
         if len(given) == 2 and _same_file(given[0][1], given[1][1]):
             raise InputError(f'--json and --html both name {given[0][1]}: the page would '
                              'overwrite the JSON report; give them different files')

@@ -42,7 +42,7 @@ def _is_bag(path):
     if (path / 'metadata.yaml').is_file():
         return True
     files = list(path.glob('*.mcap'))
-    split = re.compile(re.escape(path.name) + r'_\d+\.mcap')
+    split = re.compile(re.escape(path.resolve().name) + r'_\d+\.mcap')
     return bool(files) and all(split.fullmatch(f.name) for f in files)
 
 
@@ -161,8 +161,14 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
             row['effect'] = report['mismatch']['effect']
         if out_dir is not None:
             target = Path(out_dir) / (name or report_name(path, root))
-            write_json(target, report)
-            row['report'] = str(target)
+            try:
+                write_json(target, report)
+            except OSError as exc:
+                # One row's error, not the end of the audit.
+                why = exc.strerror or exc
+                row.update(ok=False, error=f'cannot write its report (--out-dir) {target}: {why}')
+            else:
+                row['report'] = str(target)
     row['seconds'] = round(time.perf_counter() - t0, 3)
     return row
 

@@ -235,7 +235,9 @@ def _mismatch_lines(report):
              f'{b["mse_holdout"]:.4g} -> explained {m["mse_holdout"]:.4g}')
     model = m.get('model') or {}
     params = model.get('params') or {}
-    if 'S' in params and 'J' in params:
+    found = m.get('effect') not in (None, 'none', 'unexplained')
+    if found and str(model.get('name', '')).startswith('kano+') and 'S' in params \
+            and 'J' in params:
         # The size line above is the plain model's; the explained model sizes the valve
         # with the missing physics in place.
         rest = ', '.join(f'{k} {v:.4g}' for k, v in params.items() if k not in ('S', 'J'))

@@ -212,8 +212,8 @@ def read_bag(path: str | os.PathLike[str]) -> Bag:
             complete = False
             state.warnings.append(
                 f'{file.name}: file ends early ({_why(err)}); read the {n_file} messages of '
-                f'its complete chunks. `stiction-bag repair {file}` rebuilds the index '
-                '(the damaged file is kept).')
+                f'its complete chunks. `stiction-bag repair {path}` rebuilds the index'
+                f'{" and metadata.yaml" if path.is_dir() else ""} (the damaged file is kept).')
         stats = state.statistics.pop(file, None)
         if stats is not None and stats != state.count() - n_before:
             state.warnings.append(f'{file.name}: its statistics record counts {stats} '

@@ -158,8 +158,9 @@ def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOption
                          'goes; give one of them')
     from pathlib import Path
     from stiction_ros.app.batch import report_name
+    source = Path(options.input).resolve()
     return dataclasses.replace(options, json_path=str(
-        Path(out_dir) / report_name(options.input, Path(options.input).parent)))
+        Path(out_dir) / report_name(source, source.parent)))
 
 
 def print_many(batch: Batch) -> int:

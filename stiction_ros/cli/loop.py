@@ -376,6 +376,7 @@ def main(argv=None):
     # SIGTERM (a supervisor, kill) stops the loop as Ctrl-C does.  By default it would end
     # this process at once, and the nodes, each in a session of its own, would run on.
     previous = signal.signal(signal.SIGTERM, _terminate)
+    started = False
     try:
         cfg = load_loop(resolve_config(args.config), args.case, parse_overrides(args.set))
         if args.write_params:
@@ -402,6 +403,7 @@ def main(argv=None):
         if not 0 <= args.realtime_priority <= 98:
             raise ConfigError('--realtime-priority must be 0 (off) to 98')
         respawned = {}
+        started = True
         bag = run_loop(cfg, args.namespace, args.rtf, args.duration, args.record, logs,
                        realtime_priority=args.realtime_priority, respawn=args.respawn,
                        respawned=respawned, inject=parse_inject(args.inject),
@@ -421,9 +423,10 @@ def main(argv=None):
         print(f'loop: error: {err}', file=sys.stderr)
         return 1
     except StictionError as err:
-        # Bad input (the file, a case, an option): nothing was started.
+        # Bad input (the file, a case, an option) before anything started; after, the
+        # run's own output (a bag that cannot be summarised) failed.
         print(f'loop: error: {err}', file=sys.stderr)
-        return 2
+        return 1 if started else 2
     except KeyboardInterrupt as err:
         # Processes.stop has stopped every node (a Ctrl-C during the stop waits for it).
         print('loop: interrupted; nodes stopped, bag finalised', file=sys.stderr)
