@@ -9,6 +9,7 @@ import struct
 
 import pytest
 from rosbags.rosbag2 import Reader
+from stiction_ros.app.live_summary import format_summary, summarise
 from stiction_ros.bag.metadata import qos_profile
 from stiction_ros.bag.msg_definitions import schema_text, SEPARATOR
 from stiction_ros.bag.reader import BagReadError, read_bag
@@ -33,6 +34,15 @@ def write(path, n=500, chunk_size=2048):
         w.write('/mv', f64(-i), i * 10**9 + 1)
     w.close()
     return path
+
+
+def test_a_bag_without_some_loop_topics_is_summarised_on_those_it_has(tmp_path):
+    # A loop killed before the plant and the set point published: OP and MV are there.
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'overshoot')
+    s = summarise(read_bag(write(tmp_path / 'bag', n=200)), cfg)
+    assert sorted(s['signals']) == ['mv', 'op']
+    assert [w.split(':')[0] for w in s['warnings']] == ['sp', 'pv']
+    assert "no topic 'pv'" in format_summary(s)
 
 
 def test_schema_has_every_dependency_once_after_the_rosbag2_separator():

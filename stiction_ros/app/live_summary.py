@@ -13,6 +13,7 @@ import math
 import numpy as np
 from stiction_ros.analysis.measures.limit_cycle import measure_oscillation
 from stiction_ros.analysis.readers.bag_signals import EPOCH_LIKE
+from stiction_ros.bag.reader import BagReadError
 from stiction_ros.sim.closed_loop import simulate_loop
 from stiction_ros.sim.ros_params import PHASES
 
@@ -37,15 +38,19 @@ def summarise(bag, cfg):
     for name in SIGNALS:
         try:
             topic = bag.topic(name)
-        except LookupError:
+        except BagReadError as err:
+            # A loop killed before a node published, or a bag of other topics: the
+            # signals that are there are still summarised, and the gap is named.
+            out['warnings'].append(f'{name}: {err}')
             continue
         out['messages'][topic.name] = topic.count
         k, v = on_grid(topic, ts, PHASES[PUBLISHER[name]])
-        grids[name] = (k, v)
+        if len(k):
+            grids[name] = (k, v)
     if not grids:
         return out
-    first = max(int(k[0]) for k, _ in grids.values() if len(k))
-    last = min(int(k[-1]) for k, _ in grids.values() if len(k))
+    first = max(int(k[0]) for k, _ in grids.values())
+    last = min(int(k[-1]) for k, _ in grids.values())
     n = max(last - first + 1, 0)
     out['samples'] = {'first': first, 'last': last}
     # On wall time the samples are counted from 1970, and the profiles of the loop
