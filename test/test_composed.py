@@ -39,3 +39,7 @@ def test_every_node_executable_answers_help_without_starting(module):
     assert run.stdout.startswith('usage: ') and '--ros-args' in run.stdout
     # The node's own description follows, and nothing was started (no ROS log lines).
     assert 'node' in run.stdout.split('\n\n')[1] and '[INFO]' not in run.stdout + run.stderr
+    # Its parameters follow (the composed loop: each node's own, by its params-file section).
+    sections = ['Parameters of plant', 'Parameters of controller', 'Parameters of valve']
+    assert (all(h in run.stdout for h in sections) if module == 'composed'
+            else '\nParameters (' in run.stdout), run.stdout

@@ -11,11 +11,15 @@ with a valid value.  A loop node's parameter fixed for the run takes the
 value it has and refuses any other, naming the restart that would set it.
 """
 
+import re
+import subprocess
+import sys
 import time
 
 import pytest
 from rcl_interfaces.msg import ParameterType as T
 from ros_helpers import start_node, stop
+from stiction_ros.cli.loop import MODULES
 
 pytestmark = pytest.mark.ros
 ROS_OWN = {'use_sim_time', 'start_type_description_service'}
@@ -60,6 +64,21 @@ def outside(d):
         return r.to_value * 2 + 1 if r.to_value < 1e300 else r.from_value - abs(r.from_value) - 1
     r = d.integer_range[0]
     return r.to_value + 1 if r.to_value < 2**62 else r.from_value - 1
+
+
+@pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])
+def test_help_lists_what_the_running_node_declares(probe, nodes, name):
+    # A venv from PyPI has no `ros2 param`: --help is where a newcomer reads them.
+    run = subprocess.run([sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--help'],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    listed = re.findall(r'^  (\S+) \((\w+)', run.stdout, flags=re.M)
+    seen = describe(probe, nodes[name])
+    assert sorted(n for n, _ in listed) == sorted(seen)
+    words = {T.PARAMETER_DOUBLE: 'double', T.PARAMETER_INTEGER: 'integer',
+             T.PARAMETER_STRING: 'string', T.PARAMETER_BOOL: 'bool',
+             T.PARAMETER_DOUBLE_ARRAY: 'double', T.PARAMETER_STRING_ARRAY: 'string'}
+    assert dict(listed) == {n: words[d.type] for n, d in seen.items()}
 
 
 @pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])

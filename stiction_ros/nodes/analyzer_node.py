@@ -83,6 +83,11 @@ class AnalyzerNode(Node):
               0.0, 3600.0, read_only=True),
     ]
 
+    @classmethod
+    def declared_params(cls) -> list:
+        """Return every parameter the analyzer node declares (``--help`` lists them)."""
+        return list(cls.PARAMS)
+
     def __init__(self):
         super().__init__('analyzer')
         self.values = declare(self, self.PARAMS)

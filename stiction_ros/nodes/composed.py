@@ -40,7 +40,7 @@ def build():
 
 def main(args=None):
     """Run the three loop nodes in this process."""
-    return run(build, args, 'loop_nodes')
+    return run(build, args, 'loop_nodes', NODES)
 
 
 if __name__ == '__main__':

@@ -62,9 +62,12 @@ class ControllerNode(SampledNode):
     """The controller: one PI(D) update per sample on the latest PV."""
 
     KIND = 'controller'
+    PHASE = 0.5
 
-    def __init__(self):
-        super().__init__('controller', 0.5, [
+    @staticmethod
+    def own_params() -> list:
+        """Return the controller's own parameters."""
+        return [
             Param('mode', 'closed_loop', 'closed_loop: PI(D) on pv; open_loop: OP from '
                   'op / op_profile.*. Switching to closed_loop is bumpless.',
                   choices=('closed_loop', 'open_loop')),
@@ -84,7 +87,10 @@ class ControllerNode(SampledNode):
             Param('op', 50.0, 'Open-loop OP, %. Setting it puts it in force: op_profile.type '
                   'becomes "" with it.', -1e6, 1e6),
             *profile_params('op_profile', 'Open-loop OP'),
-        ])
+        ]
+
+    def __init__(self):
+        super().__init__('controller', self.PHASE, self.own_params())
         v = self.values
         self.check_startup()
         self.pid = PID(sample_time=self.sample_time, bias=v['bias'],

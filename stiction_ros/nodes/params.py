@@ -19,6 +19,7 @@ rclpy's file loader re-reads as a string) and ``[]`` (a bool array to it).
 from dataclasses import dataclass
 import math
 import sys
+import textwrap
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rcl_interfaces.msg import ParameterType
@@ -83,6 +84,43 @@ def descriptor(p):
         rules.append(FIXED_RULE)
     d.additional_constraints = '; '.join(rules)
     return d
+
+
+_TYPE_WORDS = {bool: 'bool', int: 'integer', float: 'double', str: 'string'}
+
+
+def _num(x) -> str:
+    return f'{x:g}' if isinstance(x, float) else str(x)
+
+
+def help_entry(p: Param, width: int = 79) -> str:
+    """
+    Return a :class:`Param` as ``--help`` lists it: the name, type, default and rule.
+
+    What ``ros2 param describe`` shows on a running node, for a newcomer whose
+    Python environment has rclpy but not the ``ros2`` command.
+    """
+    if isinstance(p.default, (list, tuple)):
+        kind = 'string array' if p.default and isinstance(p.default[0], str) else 'double array'
+        default = '[' + ', '.join(_num(v) for v in p.default) + ']'
+    else:
+        kind = _TYPE_WORDS[type(p.default)]
+        default = repr(p.default) if isinstance(p.default, str) else _num(p.default)
+    head = [kind, f'default {default}']
+    if p.low is not None:
+        head.append(f'{_num(p.low)} to {_num(p.high)}')
+    if p.choices:
+        head.append('one of ' + ', '.join(repr(c) if c == '' else str(c) for c in p.choices))
+    if p.read_only:
+        head.append('read-only')
+    elif p.fixed and 'fixed for the run' not in p.description.lower():
+        head.append('fixed for the run')
+    text = p.description
+    if p.constraint and not p.choices:
+        text += f' ({p.constraint})'
+    body = textwrap.fill(text, width, initial_indent=' ' * 6, subsequent_indent=' ' * 6,
+                         break_long_words=False, break_on_hyphens=False)
+    return f'  {p.name} ({"; ".join(head)})\n{body}'
 
 
 def plain(value):

@@ -26,10 +26,13 @@ class PlantNode(SampledNode):
     """The process: one exact ZOH step per sample on the latest MV."""
 
     KIND = 'plant'
+    PHASE = 0.25
 
-    def __init__(self):
+    @staticmethod
+    def own_params() -> list:
+        """Return the plant's own parameters."""
         fixed = ' Fixed for the run (the plant state depends on it).'
-        super().__init__('plant', 0.25, [
+        return [
             Param('num', [3.0], 'Numerator coefficients of the transfer function, '
                   'highest power of s first.' + fixed, fixed=True,
                   constraint='a non-empty list of finite numbers'),
@@ -49,7 +52,10 @@ class PlantNode(SampledNode):
                   0.0, 1e6),
             Param('load', 0.0, 'Constant load added to PV, from the next sample on.',
                   -1e12, 1e12),
-        ])
+        ]
+
+    def __init__(self):
+        super().__init__('plant', self.PHASE, self.own_params())
         v = self.values
         try:
             steps = pairs(v['disturbance_steps'], 'disturbance_steps')

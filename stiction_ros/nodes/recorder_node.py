@@ -82,9 +82,10 @@ def qos_dict(qos):
 class RecorderNode(Node):
     """Writes every message of the chosen topics to one bag."""
 
-    def __init__(self):
-        super().__init__('recorder')
-        self.specs = [
+    @staticmethod
+    def declared_params() -> list:
+        """Return every parameter the recorder declares (``--help`` lists them)."""
+        return [
             Param('output', '', 'Bag directory to create (must not exist or be empty).',
                   read_only=True),
             Param('topics', ['sp', 'op', 'mv', 'pv', 'held_inputs'],
@@ -102,6 +103,10 @@ class RecorderNode(Node):
                   'start, or finishes the bag cleanly during the run.', 0.0, 1e9,
                   read_only=True),
         ]
+
+    def __init__(self):
+        super().__init__('recorder')
+        self.specs = self.declared_params()
         v = self.values = declare(self, self.specs)
         reason = check_choices(self.specs, v)
         if reason:

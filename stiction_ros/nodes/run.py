@@ -49,7 +49,9 @@ from rclpy.signals import get_current_signal_handlers_options, install_signal_ha
 from rclpy.signals import SignalHandlerOptions, uninstall_signal_handlers
 from stiction_ros.models.base import ModelError
 from stiction_ros.nodes.exit_timer import exit_after
-from stiction_ros.nodes.sampled import StartupError
+from stiction_ros.nodes.params import help_entry
+from stiction_ros.nodes.sampled import SampledNode, StartupError
+from stiction_ros.nodes.sampled_params import common_params
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # Below ros2 launch's 5 s between its SIGINT and its SIGTERM (which a closing node
@@ -96,29 +98,58 @@ def wants_help(args=None):
     return '-h' in argv or '--help' in argv
 
 
-def help_text(factory, prog):
-    """Return the executable's help: its module's docstring and how to pass ROS arguments."""
+def params_help(nodes) -> str:
+    """
+    Return the parameters of ``nodes`` (node classes) as ``--help`` lists them.
+
+    One node: each of its parameters.  Several in one process (``loop_nodes``):
+    each node's own, then the names the loop nodes share, once.
+    """
+    if len(nodes) == 1:
+        return ('Parameters (-p NAME:=VALUE, or --params-file FILE; on a running\n'
+                'node `ros2 param describe` shows the same):\n'
+                + '\n'.join(help_entry(p) for p in nodes[0].declared_params()))
+    parts = []
+    for cls in nodes:
+        parts.append(f'Parameters of {cls.KIND} (its section of the params file):')
+        parts += [help_entry(p) for p in cls.own_params()]
+    if all(issubclass(cls, SampledNode) for cls in nodes):
+        shared = ', '.join(p.name for p in common_params(0.5))
+        parts.append(f'Every loop node also has: {shared} ('
+                     + ', '.join(f'{cls.KIND} --help' for cls in nodes) + ' describes them).')
+    return '\n'.join(parts)
+
+
+def help_text(factory, prog, nodes=None):
+    """
+    Return the executable's help: its module's docstring, its parameters, how to run it.
+
+    ``nodes`` are the node classes the factory builds, when it is not one itself.
+    """
     doc = (sys.modules[factory.__module__].__doc__ or '').strip()
+    nodes = nodes or ((factory,) if hasattr(factory, 'declared_params') else ())
+    params = f'\n\n{params_help(nodes)}' if nodes else ''
     return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE] [--params-file FILE] '
             '[-r FROM:=TO] [--log-level LEVEL]]\n\n'
-            f'{doc}\n\nParameters: `ros2 param list` and `ros2 param describe` on the '
-            'running node show each one with its range and rule (README, "Parameters").\n'
+            f'{doc}{params}\n\n'
             'Exit status: 0 after a clean stop (SIGINT/SIGTERM), 2 if the node cannot start.\n'
             "SIGUSR1 prints every thread's stack to stderr; the node goes on.")
 
 
-def run(factory, args=None, prog='node'):
+def run(factory, args=None, prog='node', nodes=None):
     """
     Create the node with ``factory()`` and spin it until shutdown; return an exit code.
 
     ``factory`` may return several nodes, spun on one executor (composition).
     A node with a ``finished`` future is spun until it completes, and its
     result is the exit code (0 when a signal stopped it first).
-    ``-h``/``--help`` prints :func:`help_text` and starts nothing.
+    ``-h``/``--help`` prints :func:`help_text` (with the parameters of
+    ``nodes``, the classes the factory builds, or of the factory when it is
+    a node class) and starts nothing.
     """
     if wants_help(args):
         try:
-            print(help_text(factory, prog), flush=True)
+            print(help_text(factory, prog, nodes), flush=True)
         except BrokenPipeError:
             # Read by `head` or a pager that quit: nothing more to say.
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

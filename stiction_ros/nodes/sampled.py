@@ -72,6 +72,17 @@ class SampledNode(Node):
     """A node that calls :meth:`on_sample` once per sample at its phase."""
 
     KIND = 'node'
+    PHASE = 0.5
+
+    @staticmethod
+    def own_params() -> list:
+        """Return the :class:`Param` specs of this kind of node beside the common ones."""
+        return []
+
+    @classmethod
+    def declared_params(cls) -> list:
+        """Return every parameter the node declares, known before it starts (``--help``)."""
+        return common_params(cls.PHASE) + cls.own_params()
 
     def __init__(self, name, phase, params):
         super().__init__(name)

@@ -53,9 +53,10 @@ RESEND = 0.1
 class SimClockNode(Node):
     """Publishes sim time; completes ``finished`` at ``stop_at``."""
 
-    def __init__(self):
-        super().__init__('sim_clock')
-        specs = [
+    @staticmethod
+    def declared_params() -> list:
+        """Return every parameter the clock declares (``--help`` lists them)."""
+        return [
             Param('rtf', 1.0, 'Real-time factor: sim seconds per wall second.', 1e-3, 1e5,
                   read_only=True),
             Param('step', 0.25, 'Sim seconds per /clock message (a quarter sample).', 1e-6, 1e4,
@@ -83,6 +84,10 @@ class SimClockNode(Node):
             Param('settle', 1.0, 'Wall seconds to wait after the subscribers appear, so that '
                   'every publisher matches them too.', 0.0, 60.0, read_only=True),
         ]
+
+    def __init__(self):
+        super().__init__('sim_clock')
+        specs = self.declared_params()
         self.values = declare(self, specs)
         if self.get_parameter('use_sim_time').value:
             raise StartupError('sim_clock must run on wall time (use_sim_time:=false)')

@@ -46,16 +46,21 @@ class ValveNode(SampledNode):
     """The valve: one model step per sample on the latest OP."""
 
     KIND = 'valve'
+    PHASE = 0.75
 
-    def __init__(self):
-        self.model_specs = model_params()
-        super().__init__('valve', 0.75, [
+    @staticmethod
+    def own_params() -> list:
+        """Return the valve's own parameters: the model and every model's parameters."""
+        return [
             Param('model', 'choudhury', 'Stiction model; switching is bumpless.',
                   choices=tuple(MODELS)),
             Param('initial_position', 50.0,
                   'Position the valve rests at before its first OP, % of travel. '
                   'Fixed for the run: used at start-up only.', 0.0, 100.0, fixed=True),
-        ] + self.model_specs)
+        ] + model_params()
+
+    def __init__(self):
+        super().__init__('valve', self.PHASE, self.own_params())
         self.check_startup()
         warm_up()
         self.model = self._build(self.values['model'], self.values)
