@@ -6,7 +6,7 @@ import pytest
 from stiction_ros.analysis.detection import detect, load_model, model_file
 from stiction_ros.analysis.detection.detect import HELD_ERRORS, leaned_on, RAMP_R2
 from stiction_ros.analysis.detection.resolve import (
-    cycle_judgeable, judgeable, MIN_SAMPLES, period_sanity)
+    cycle_judgeable, judgeable, limit_swings, MIN_SAMPLES, period_sanity)
 from stiction_ros.analysis.detection.stuck import stuck_periods
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop
@@ -108,6 +108,29 @@ def test_a_sticking_valve_sampled_every_3_minutes_cannot_be_told():
 def _flow_loop(valve, seed):
     # A fast self-regulating loop hit by load steps: PV stands in for MV.
     return disturbed_loop(valve, seed, Kc=0.2, Ti=60.0, pv_std=0.02, duration=4000.0)
+
+
+def test_a_loop_cycling_between_op_limits_cannot_be_told():
+    # Ten times the flow loop's gain: a linear valve driven from stop to stop.
+    rec = disturbed_loop({'model': 'linear'}, 7, Kc=2.0, Ti=60.0, duration=2000.0)
+    swings = limit_swings(rec['op'])
+    assert swings >= 50
+    j = judgeable(rec['op'], rec['pv'], 1.0, rec['sp'])
+    assert j.code == 'limit_cycling' and f'other {swings} times' in j.reason
+    d = detect(rec['op'], rec['pv'], rec['sp'], 1.0)
+    assert d.answer == 'cannot tell' and d.probability is None and d.judge.code == 'limit_cycling'
+    # At the normal gain it stays inside its range and is judged.
+    calm = _flow_loop({'model': 'linear'}, 7)
+    assert limit_swings(calm['op']) == 0 and judgeable(calm['op'], calm['pv'], 1.0).ok
+    # One limit only (a valve too small at the top of each cycle), or one trip
+    # from one limit to the other (a start-up), is not a cycle between them.
+    t = np.arange(900)
+    top = np.clip(70 + 40 * np.sin(2 * np.pi * t / 90), 0, 100) + noisy(900, 8, 0.05)
+    assert limit_swings(np.clip(top, 0, 100)) == 0
+    trip = np.concatenate([np.zeros(300), np.linspace(0, 100, 300), np.full(300, 100.0)])
+    assert limit_swings(trip) == 1
+    pv = np.sin(2 * np.pi * t / 90) + noisy(900, 9, 0.1)
+    assert judgeable(trip + noisy(900, 10, 0.05), pv, 1.0).code != 'limit_cycling'
 
 
 def test_stuck_periods_are_where_the_valve_really_stood_still():

@@ -14,6 +14,10 @@ deliberately plain, each with a reason an engineer can act on:
 * under-sampled: the loop's own cycle is shorter than ``MIN_PERIOD_SAMPLES``
   samples, or alternates sample to sample, so stick-slip cannot be resolved
   and any size estimate would be an alias;
+* cycling against OP's limits: OP swings from one limit to the other again
+  and again, as too much gain or an on-off action drives a loop with any
+  valve; a valve driven from stop to stop shows nothing of its friction, and
+  the simulator the detector learned from never draws such a loop;
 * not in control: the set point lies farther from PV than PV's whole range,
   on one side all record, while OP moves with no trend to speak of.  With
   integral action an error of one sign drives OP one way until it saturates,
@@ -34,7 +38,7 @@ import numpy as np
 
 from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
 
-__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1',
+__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1', 'limit_swings',
            'MIN_PERIOD_SAMPLES', 'MIN_SAMPLES', 'period_sanity', 'robust_noise']
 
 MIN_SAMPLES = 200
@@ -58,6 +62,11 @@ SP_OUTSIDE = 1.0
 ONE_SIGNED = 0.99
 NET_OP = 0.5
 OP_LIMITS = (0.5, 99.5)
+# Cycling against the limits: OP goes from one limit (OP_LIMITS) to the other at least
+# this often (twice there and back).  In the 7 500 training and calibration records it
+# never does so more than once, in the first network's 40 000 twice; detuned past
+# stability, healthy loops read as stiction (docs/DETECTION.md section 1).
+LIMIT_SWINGS = 4
 
 
 @dataclass(frozen=True)
@@ -155,7 +164,24 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
                          f'resolved; record at a shorter sample time')
     if float(np.std(d_pv)) == 0.0:
         return Judgeable(False, 'pv_constant', 'PV does not vary')
+    swings = limit_swings(op)
+    if swings >= LIMIT_SWINGS:
+        at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+        return Judgeable(False, 'limit_cycling',
+                         f'OP swung from one limit to the other {swings} times (at 0 or 100 % '
+                         f'in {100 * at_limit:.0f} % of the samples): the loop cycles against '
+                         f"OP's limits, as too much controller gain or an on-off action makes "
+                         f'it do with any valve, and a valve driven from stop to stop shows '
+                         f'nothing of its friction (the detector learned from no such loop); '
+                         f'retune it, or read a stretch where OP stays inside its range')
     return in_control(op, pv, sp)
+
+
+def limit_swings(op: np.ndarray) -> int:
+    """Return how often OP went from one of its limits (``OP_LIMITS``) to the other."""
+    side = np.where(op <= OP_LIMITS[0], -1, np.where(op >= OP_LIMITS[1], 1, 0))
+    side = side[side != 0]
+    return int(np.count_nonzero(side[1:] != side[:-1]))
 
 
 def in_control(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Judgeable:
