@@ -131,6 +131,9 @@ def test_a_loop_cycling_between_op_limits_cannot_be_told():
     assert limit_swings(trip) == 1
     pv = np.sin(2 * np.pi * t / 90) + noisy(900, 9, 0.1)
     assert judgeable(trip + noisy(900, 10, 0.05), pv, 1.0).code != 'limit_cycling'
+    # Slammed from stop to stop every few samples: two values, a cycle and not a frozen OP.
+    bang = np.where(np.sin(2 * np.pi * t / 12) > 0, 100.0, 0.0)
+    assert judgeable(bang, pv, 1.0).code == 'limit_cycling'
 
 
 def test_stuck_periods_are_where_the_valve_really_stood_still():

@@ -147,6 +147,17 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
                          f'too short: {n} usable samples, at least {MIN_SAMPLES} needed')
     if _frozen(pv):
         return Judgeable(False, 'pv_constant', _constant_pv_reason(op, pv))
+    # Before the frozen-OP check: an OP slammed between 0 and 100 % has two values.
+    swings = limit_swings(op)
+    if swings >= LIMIT_SWINGS:
+        at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+        return Judgeable(False, 'limit_cycling',
+                         f'OP swung from one limit to the other {swings} times (at 0 or 100 % '
+                         f'in {100 * at_limit:.0f} % of the samples): the loop cycles against '
+                         f"OP's limits, as too much controller gain or an on-off action makes "
+                         f'it do with any valve, and a valve driven from stop to stop shows '
+                         f'nothing of its friction (the detector learned from no such loop); '
+                         f'retune it, or read a stretch where OP stays inside its range')
     if _frozen(op) or float(np.ptp(op)) < MIN_OP_TRAVEL:
         # Some historians export OP as a 0-1 fraction; every threshold here is in %.
         fraction = (0.0 < float(np.ptp(op)) and float(np.max(np.abs(op))) <= 1.0
@@ -164,16 +175,6 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
                          f'resolved; record at a shorter sample time')
     if float(np.std(d_pv)) == 0.0:
         return Judgeable(False, 'pv_constant', 'PV does not vary')
-    swings = limit_swings(op)
-    if swings >= LIMIT_SWINGS:
-        at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
-        return Judgeable(False, 'limit_cycling',
-                         f'OP swung from one limit to the other {swings} times (at 0 or 100 % '
-                         f'in {100 * at_limit:.0f} % of the samples): the loop cycles against '
-                         f"OP's limits, as too much controller gain or an on-off action makes "
-                         f'it do with any valve, and a valve driven from stop to stop shows '
-                         f'nothing of its friction (the detector learned from no such loop); '
-                         f'retune it, or read a stretch where OP stays inside its range')
     return in_control(op, pv, sp)
 
 
