@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy robustness detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy robustness probes detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -59,6 +59,12 @@ accuracy: venv
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
 	  --json docs/robustness.json
+
+# The verdict on loops the simulator never draws: equal-percentage valves tuned hot,
+# gap and error-squared level controllers, loops detuned past stability
+# (docs/PROBES.md; about 10 min on 2 cores).
+probes: venv
+	$(PINNED) $(PY) -m stiction_ros.cli.probes --markdown docs/PROBES.md --json docs/probes.json
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
 # stiction_ros/resources/stiction_detector.npz.  About 11-14 min on 2 cores from scratch

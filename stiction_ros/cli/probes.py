@@ -1,0 +1,111 @@
+"""
+Read loops the simulator never draws: docs/PROBES.md (``make probes``).
+
+    python -m stiction_ros.cli.probes [--first-seed S] [--seeds N] [--jobs J]
+                                      [--markdown docs/PROBES.md] [--json docs/probes.json]
+
+Each probe of ``stiction_ros.study.probes.PROBES`` draws its loops from its
+own generator, and the shipped detector reads them as the analyzer does.  A
+healthy loop called ``stiction`` is a confident wrong answer on a kind of loop
+the model never saw; these seeds choose nothing.
+"""
+
+import argparse
+import datetime
+import json
+import os
+from pathlib import Path
+import platform
+import sys
+
+from stiction_ros.app.progress import Step, terminal_progress
+from stiction_ros.cli.text import description
+from stiction_ros.errors import DetectorFileError
+
+# Seeds of the probes' own generators (streams [seed, 11] and [seed, 13]) and of the
+# corpus for the detuned loops: 3960000- is where the limit-cycling refusal was scored.
+FIRST_SEED = 3_960_000
+
+
+def parser() -> argparse.ArgumentParser:
+    """Return the command-line parser."""
+    p = argparse.ArgumentParser(prog='stiction-probes', description=description(__doc__))
+    p.add_argument('--first-seed', type=int, default=FIRST_SEED)
+    p.add_argument('--seeds', type=int, default=200, help='records per probe (default 200)')
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
+    p.add_argument('--markdown', default='docs/PROBES.md')
+    p.add_argument('--json', default='docs/probes.json')
+    return p
+
+
+def markdown(study: dict) -> str:
+    """Return the page for the JSON of a study (``Probes.to_json`` plus ``run``)."""
+    a, b = study['seeds']
+    lines = [
+        '# What the detector answers on loops the simulator never draws',
+        '',
+        'Written by `make probes` (`stiction_ros.study.probes`); do not edit by hand. '
+        f"Run {study['run']['date']} on {study['run']['machine']}, {study['seconds']:.0f} s; "
+        f'seeds {a}-{b - 1} of each probe, read by the shipped detector as the analyzer '
+        'reads a record. Nothing is chosen on these records.',
+        '',
+        '| probe | valve | records | stiction | no stiction | cannot tell: balanced '
+        '| cannot tell: refused | at 0.5: flagged of judged |',
+        '|---|---|---|---|---|---|---|---|',
+    ]
+    for r in study['rows']:
+        refused = ', '.join(f'{n} {c.replace("_", " ")}' for c, n in sorted(r['refused'].items()))
+        lines.append(f"| {r['probe']} | {'sticky' if r['label'] else 'healthy'} | "
+                     f"{r['records']} | {r['stiction']} | {r['no_stiction']} | {r['balanced']} | "
+                     f"{refused or '0'} | {r['at_half']}/{r['judged']} |")
+    lines += ['', 'The probes:', '']
+    seen = set()
+    for r in study['rows']:
+        if r['probe'] not in seen:
+            seen.add(r['probe'])
+            lines.append(f"* **{r['probe']}**: {r['what']}.")
+    lines += ['', 'On a healthy row every `stiction` is a wrong answer the model gave with a '
+              'probability of 0.75 or more; docs/DETECTION.md (section 5) says what is done '
+              'about each.', '']
+    return '\n'.join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point."""
+    args = parser().parse_args(argv)
+    if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0:
+        print('stiction-probes: error: at least 1 seed and 1 job, and a first seed of 0 or '
+              'more', file=sys.stderr)
+        return 2
+    from stiction_ros.study.probes import run
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    try:
+        with terminal_progress() as say:
+            study = run(seeds, args.jobs,
+                        lambda i, n, s: say(Step('records read', i, n, f'{s:.0f} s')))
+    except DetectorFileError as err:
+        print(f'stiction-probes: error: {err}', file=sys.stderr)
+        return 2
+    out = {**study.to_json(), 'run': {'date': datetime.date.today().isoformat(),
+                                      'machine': f'{platform.machine()}, {os.cpu_count()} '
+                                                 f'cores, {args.jobs} jobs'}}
+    try:
+        for path, text in ((args.json, json.dumps(out, indent=1) + '\n'),
+                           (args.markdown, markdown(out))):
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            Path(path).write_text(text, encoding='utf-8')
+    except OSError as err:
+        print(f'stiction-probes: error: cannot write {err.filename}: {err.strerror}',
+              file=sys.stderr)
+        return 2
+    for r in out['rows']:
+        print(f"{r['probe']:>20} {'sticky' if r['label'] else 'healthy':>7}: "
+              f"{r['stiction']} stiction, {r['no_stiction']} no stiction, "
+              f"{r['records'] - r['stiction'] - r['no_stiction']} cannot tell "
+              f"of {r['records']}")
+    print(f'wrote {args.markdown} and {args.json}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,234 @@
+"""
+Loops the simulator never draws: what the detector answers on them (``make probes``).
+
+The detector learned from :mod:`stiction_ros.sim.corpus`, whose loops are
+linear PI loops on linear plants, kept inside OP's range.  A plant has more:
+equal-percentage valves whose installed gain grows as they open, level
+controllers with a gap or an error-squared law, loops tuned past stability.
+Each probe here draws one such family from its own generator (not the
+corpus's, so nothing in it was tuned on), and :func:`run` reads every record
+by the analyzer's own path (:func:`detect`).  A healthy record called
+``stiction`` is the finding: a confident wrong answer on a kind of loop the
+model never saw.  Nothing is fitted or chosen here; the model is the shipped
+one.
+"""
+
+from dataclasses import dataclass, replace
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from stiction_ros._threads import pool_map
+from stiction_ros.analysis.detection.detect import THRESHOLD
+
+SAMPLES = 1500
+SAMPLE_TIME = 10.0
+
+
+@dataclass(frozen=True)
+class ProbeRecord:
+    """One probe loop as a historian would export it, with its truth."""
+
+    op: np.ndarray
+    pv: np.ndarray
+    sp: np.ndarray
+    sample_time: float
+    integrating: bool
+    label: bool
+
+
+def _pi(kc: float, ti: float, ts: float, bias: float) -> Callable[[float], float]:
+    """Return a positional PI step on the error, clamped to 0-100 % without wind-up."""
+    state = {'i': bias}
+
+    def step(e: float) -> float:
+        raw = state['i'] + kc * e
+        op = min(max(raw, 0.0), 100.0)
+        if op == raw:
+            state['i'] += kc * ts / ti * e
+        return op
+    return step
+
+
+def equal_percentage(seed: int) -> ProbeRecord:
+    """
+    Return a loop through an equal-percentage valve, tuned from normal to hot.
+
+    The installed gain is ``R ** (x / 100)`` up to a constant (rangeability
+    ``R``), scaled to 1 at the operating point the loop was tuned at; where
+    loads or the cycle carry the valve further open, the loop gain grows and
+    a hot tuning cycles, bounded by the gain falling again as it closes.  Half
+    the records carry a sticky valve (the Kano model) instead of a smooth one.
+    """
+    from stiction_ros.models import create
+    rng = np.random.default_rng([seed, 11])
+    ts, n = SAMPLE_TIME, SAMPLES
+    label = bool(rng.random() < 0.5)
+    integrating = bool(rng.random() < 0.3)
+    rangeability = rng.uniform(20.0, 50.0)
+    tau = rng.uniform(1.0, 20.0) * ts
+    delay = int(rng.integers(0, 6))
+    gain = rng.uniform(0.5, 2.0)
+    noise = rng.uniform(0.01, 0.2)
+    hot = rng.uniform(0.8, 2.5)
+    rate = gain / (50.0 * ts)
+    if integrating:
+        kc = hot / (rate * ts * (delay + 2) * 4.0)
+        ti = 8.0 * (delay + 2) * ts
+    else:
+        theta = (delay + 0.5) * ts
+        kc = hot * tau / (gain * 2.0 * theta)
+        ti = max(min(tau, 8.0 * theta), ts)
+    cycle = rng.uniform(0.5, 4.0) * np.sin(2.0 * np.pi * np.arange(n) / rng.uniform(20.0, 200.0))
+    load = np.cumsum(rng.standard_normal(n)) * rng.uniform(0.01, 0.1)
+    load = load + (cycle if rng.random() < 0.5 else 0.0)
+    op0 = rng.uniform(20.0, 80.0)
+    ln_r = math.log(rangeability)
+
+    def installed(x: float) -> float:
+        # Unit slope at op0, so the tuning holds there and only there.
+        return 100.0 / ln_r * (rangeability ** ((min(max(x, 0.0), 100.0) - op0) / 100.0) - 1.0)
+    valve = None
+    if label:
+        stick = rng.uniform(1.0, 6.0)
+        valve = create('kano', S=stick, J=stick * rng.uniform(0.2, 1.0))
+        valve.reset(y0=op0)
+    pi = _pi(kc, ti, ts, op0)
+    a = math.exp(-ts / tau)
+    x, queue = 0.0, [0.0] * (delay + 1)
+    op, pv = np.empty(n), np.empty(n)
+    for k in range(n):
+        pv[k] = x + noise * rng.standard_normal()
+        op[k] = pi(-pv[k])
+        position = valve.step(op[k]) if valve is not None else op[k]
+        queue.append(installed(position) + load[k])
+        u = queue.pop(0)
+        x = x + rate * ts * u if integrating else a * x + (1.0 - a) * gain * u
+    return ProbeRecord(op, pv, np.zeros(n), ts, integrating, label)
+
+
+def _level_loop(seed: int, law: Callable[[float, float], float]) -> ProbeRecord:
+    """Return a healthy level loop (an integrating tank) under a nonlinear controller law."""
+    rng = np.random.default_rng([seed, 13])
+    ts, n = SAMPLE_TIME, SAMPLES
+    rate = rng.uniform(0.002, 0.02)            # % level per % valve per second
+    kc, ti = rng.uniform(0.5, 4.0), rng.uniform(300.0, 3000.0)
+    gap = rng.uniform(1.0, 6.0)                 # % level
+    noise, damping = rng.uniform(0.02, 0.3), rng.uniform(0.0, 0.8)
+    delay = int(rng.integers(0, 3))
+    mv0 = rng.uniform(30.0, 70.0)
+    walk = np.cumsum(rng.standard_normal(n)) * rng.uniform(0.02, 0.2)
+    inflow = mv0 + walk - walk[0]
+    if rng.random() < 0.5:
+        inflow[int(n * rng.uniform(0.2, 0.8)):] += rng.uniform(-5.0, 5.0)
+    level = measured = 50.0 + rng.uniform(-2.0, 2.0)
+    pi = _pi(kc, ti, ts, mv0)
+    queue = [mv0] * (delay + 1)
+    op, pv = np.empty(n), np.empty(n)
+    for k in range(n):
+        measured = damping * measured + (1.0 - damping) * level
+        pv[k] = measured + noise * rng.standard_normal()
+        # An outflow valve: a high level opens it (direct action).
+        op[k] = pi(law(pv[k] - 50.0, gap))
+        queue.append(op[k])
+        level += rate * ts * (inflow[k] - queue.pop(0))
+    return ProbeRecord(op, pv, np.full(n, 50.0), ts, True, False)
+
+
+def _gap(e: float, gap: float) -> float:
+    # Inside the gap a tenth of the gain: averaging level control lets the tank swing.
+    return 0.1 * e if abs(e) < gap else e - math.copysign(0.9 * gap, e)
+
+
+def _squared(e: float, gap: float) -> float:
+    return e * abs(e) / gap
+
+
+def gap_level(seed: int) -> ProbeRecord:
+    """Return a healthy level loop under a gap (two-gain) controller."""
+    return _level_loop(seed, _gap)
+
+
+def error_squared_level(seed: int) -> ProbeRecord:
+    """Return a healthy level loop under an error-squared controller."""
+    return _level_loop(seed, _squared)
+
+
+def detuned(seed: int) -> ProbeRecord:
+    """Return a corpus loop whose controller gain is raised 3-15 times (both labels)."""
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(seed)
+    hot = float(np.random.default_rng([seed, 7]).uniform(3.0, 15.0))
+    rec = simulate(replace(sc, Kc=sc.Kc * hot))
+    return ProbeRecord(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating,
+                       sc.label)
+
+
+# name, what it stands for, generator.
+PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
+    ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
+     'hotter than its gain at the operating point calls for; half sticky (Kano, S 1-6 %)',
+     equal_percentage),
+    ('gap level', 'a level loop whose controller has a tenth of its gain inside a gap of '
+     '1-6 % (averaging level control); healthy', gap_level),
+    ('error-squared level', 'a level loop under an error-squared PI law; healthy',
+     error_squared_level),
+    ('detuned', 'a corpus loop with its controller gain raised 3-15 times, both labels',
+     detuned),
+)
+
+
+def _read(job: tuple[int, int]) -> tuple:
+    from stiction_ros.analysis.detection.detect import detect
+    j, seed = job
+    r = PROBES[j][2](seed)
+    d = detect(r.op, r.pv, r.sp, r.sample_time, r.integrating)
+    return j, seed, r.label, d.answer, d.probability, '' if d.judge.ok else d.judge.code
+
+
+@dataclass
+class Probes:
+    """The detector's answers on every probe record."""
+
+    seeds: range
+    answers: list       # (probe index, seed, label, answer, probability, refusal code)
+    seconds: float
+
+    def rows(self) -> list[dict]:
+        """Return one row per probe and label: counts of each answer and refusal."""
+        out = []
+        for j, (name, what, _) in enumerate(PROBES):
+            for label in (False, True):
+                got = [a for a in self.answers if a[0] == j and a[2] == label]
+                if not got:
+                    continue
+                p = np.array([np.nan if a[4] is None else a[4] for a in got])
+                refusals: dict[str, int] = {}
+                for a in got:
+                    if a[5]:
+                        refusals[a[5]] = refusals.get(a[5], 0) + 1
+                out.append({'probe': name, 'what': what, 'label': label, 'records': len(got),
+                            'stiction': sum(a[3] == 'stiction' for a in got),
+                            'no_stiction': sum(a[3] == 'no stiction' for a in got),
+                            'balanced': sum(a[3] == 'cannot tell' and not a[5] for a in got),
+                            'refused': refusals, 'judged': int(np.isfinite(p).sum()),
+                            'at_half': int(np.sum(np.nan_to_num(p, nan=0.0) >= THRESHOLD))})
+        return out
+
+    def to_json(self) -> dict:
+        """Return the study as plain JSON types."""
+        return {'seeds': [self.seeds.start, self.seeds.stop], 'seconds': round(self.seconds, 1),
+                'rows': self.rows()}
+
+
+def run(seeds: range, jobs: int = 1, say=None) -> Probes:
+    """Return the detector's answers on every probe of :data:`PROBES` for ``seeds``."""
+    t0, got = time.perf_counter(), []
+    jobs_list = [(j, s) for j in range(len(PROBES)) for s in seeds]
+    for i, r in enumerate(pool_map(_read, jobs_list, jobs, chunksize=4), 1):
+        got.append(r)
+        if say is not None:
+            say(i, len(jobs_list), time.perf_counter() - t0)
+    return Probes(seeds, got, time.perf_counter() - t0)

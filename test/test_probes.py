@@ -1,0 +1,54 @@
+"""The probes: loops the simulator never draws, each from its own generator (make probes)."""
+
+import json
+import math
+
+import numpy as np
+from stiction_ros.analysis.detection.resolve import LIMIT_SWINGS, limit_swings
+from stiction_ros.study import probes
+from stiction_ros.study.probes import PROBES
+
+
+def test_each_probe_is_a_function_of_its_seed_alone():
+    for _, _, draw in PROBES:
+        a, b, c = draw(5), draw(5), draw(6)
+        np.testing.assert_array_equal(a.op, b.op)
+        np.testing.assert_array_equal(a.pv, b.pv)
+        assert not np.array_equal(a.pv, c.pv)
+        assert len(a.op) == len(a.pv) == len(a.sp) and np.isfinite(a.op).all()
+        assert a.op.min() >= 0.0 and a.op.max() <= 100.0
+
+
+def test_the_gap_controller_barely_moves_op_while_the_level_stays_in_its_gap():
+    # Inside the gap a tenth of the gain: OP's steps there are a fraction of those
+    # outside, the signature of averaging level control (and not of a valve).
+    gap = probes._gap
+    assert math.isclose(gap(0.5, 2.0), 0.05) and math.isclose(gap(3.0, 2.0), 1.2)
+    assert math.isclose(gap(-3.0, 2.0), -1.2)
+    # Continuous at the gap's edges: the law has no jump that could read as a slip.
+    assert math.isclose(gap(2.0 - 1e-12, 2.0), gap(2.0 + 1e-12, 2.0), abs_tol=1e-9)
+    assert math.isclose(probes._squared(-2.0, 4.0), -1.0)
+
+
+def test_a_detuned_loop_cycling_between_op_limits_is_refused_by_its_rule(tmp_path):
+    from stiction_ros.cli.probes import main
+    seeds = range(3_960_000, 3_960_002)
+    study = probes.run(seeds, jobs=1)
+    detuned = [j for j, p in enumerate(PROBES) if p[0] == 'detuned'][0]
+    cycling = 0
+    for j, seed, label, answer, p, code in study.answers:
+        if j == detuned and limit_swings(probes.detuned(seed).op) >= LIMIT_SWINGS:
+            assert answer == 'cannot tell' and p is None and code == 'limit_cycling'
+            cycling += 1
+    assert cycling >= 1
+    rows = study.rows()
+    assert sum(r['records'] for r in rows) == len(PROBES) * len(seeds)
+    for r in rows:
+        told = r['stiction'] + r['no_stiction'] + r['balanced'] + sum(r['refused'].values())
+        assert told == r['records'] and r['at_half'] <= r['judged'] <= r['records']
+    md, js = tmp_path / 'p.md', tmp_path / 'p.json'
+    assert main(['--first-seed', '3960000', '--seeds', '1', '--jobs', '1',
+                 '--markdown', str(md), '--json', str(js)]) == 0
+    assert all(f'| {p[0]} |' in md.read_text() for p in PROBES)
+    assert json.loads(js.read_text())['seeds'] == [3_960_000, 3_960_001]
+    assert main(['--seeds', '0']) == 2
