@@ -148,6 +148,22 @@ def test_stuck_periods_are_where_the_valve_really_stood_still():
         assert still > 0.8, (a, b, still)
 
 
+def test_stuck_periods_without_a_slip_are_said_to_be_what_a_deadband_leaves_too():
+    # Play without a slip jump (Kano, J 0) under noise that hides the restart.
+    dead = disturbed_loop({'model': 'kano', 'S': 3.0, 'J': 0.0}, 101, Kc=0.2, Ti=60.0,
+                          pv_std=0.3, duration=4000.0)
+    d = detect(dead['op'], dead['pv'], dead['sp'], 1.0)
+    stuck = d.details['stuck']
+    assert stuck['stuck_periods_s'] and not stuck['slips_s']
+    assert any(line.startswith('no slip after any stuck period') and 'deadband' in line
+               for line in d.evidence)
+    # A valve that slips says so, and not this.
+    sticky = _flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.5}, 101)
+    d = detect(sticky['op'], sticky['pv'], sticky['sp'], 1.0)
+    assert d.details['stuck']['slips_s']
+    assert not any(line.startswith('no slip after any') for line in d.evidence)
+
+
 def test_a_linear_valve_is_rarely_found_stuck():
     shares = [stuck_periods(r['op'], r['pv'], r['sp']).stuck_op_share
               for r in (_flow_loop({'model': 'linear'}, s) for s in range(200, 206))]

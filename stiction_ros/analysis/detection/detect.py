@@ -127,6 +127,14 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
                      'that the ramp cancels; a slip, or PV answering when OP turns, tells them '
                      'apart')
         out.append(line)
+        if not st.slips:
+            # Beside a verdict that leans to no stiction these periods read as a
+            # contradiction; they are not one (docs/DETECTION.md, section 3).
+            out.append('no slip after any stuck period: a valve that stands still while OP '
+                       'travels and then moves on without a jump is what a deadband (play in '
+                       'the actuator or linkage) leaves as well as stiction, and OP and PV '
+                       'alone cannot tell the two apart; stuck periods alone do not make the '
+                       'answer, and a valve travel test tells')
     for k, z in sorted(st.slips, key=lambda s: -s[1])[:3]:
         out.append(f'slip at {_t(k, ts)}: the valve proxy jumped {z:.1f} noise widths '
                    f'(no set-point step before it)')
