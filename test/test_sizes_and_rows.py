@@ -201,6 +201,11 @@ def test_without_stiction_the_caution_says_a_band_may_be_missed():
     assert 'read low' in sampling_caution(held, ringing, 5.0, sticks=True)
     assert sampling_caution(held, SimpleNamespace(oscillating=True, period_s=64.0), 5.0,
                             sticks=True) == ''
+    # Slammed between its limits every sample: still a cycle the sampling cannot show,
+    # though the detector refuses it as cycling against the limits first.
+    bang = np.where(np.arange(600) % 2 == 0, 100.0, 0.0)
+    flip = {'op': bang, 'pv': 0.3 * bang + rng.normal(0, 0.05, 600), 'sp': np.full(600, 40.0)}
+    assert 'alternate from sample to sample' in sampling_caution(flip, None, 5.0, sticks=True)
 
 
 def test_the_old_rule_does_not_size_or_vote_on_a_map_that_is_no_ellipse():

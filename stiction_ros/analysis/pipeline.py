@@ -12,7 +12,8 @@ import re
 
 import numpy as np
 
-from stiction_ros.analysis.detection import detect, Detection, Judgeable, judgeable
+from stiction_ros.analysis.detection import detect, Detection, Judgeable
+from stiction_ros.analysis.detection.resolve import alternating, MIN_SAMPLES
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
@@ -335,7 +336,7 @@ def sampling_caution(held: dict, osc, sample_time: float, sticks: bool,
     otherwise a band this sampling cannot resolve may have been missed.
     ``pv_name``: what ``held['pv']`` holds (MV where the record has no PV).
     """
-    if judgeable(held['op'], held['pv'], sample_time, held['sp']).code == 'under_sampled':
+    if len(held['pv']) >= MIN_SAMPLES and alternating(held['op'], held['pv']):
         seen = (f'OP and {pv_name} alternate from sample to sample (a cycle of 2-3 samples '
                 f'of {sample_time:g} s)')
     elif (osc is not None and osc.oscillating and osc.period_s

@@ -9,15 +9,16 @@ deliberately plain, each with a reason an engineer can act on:
 * PV constant: the measurement never moves (a frozen transmitter, a dead
   historian tag, a zero flow, or 3.5e-44: a whole number's bits read as a
   float by the export), so nothing in it can show a valve;
+* cycling against OP's limits: OP swings from one limit to the other again
+  and again (and stands at one in a share of the samples), as too much gain
+  or an on-off action drives a loop with any valve; a valve driven from stop
+  to stop shows nothing of its friction, and the simulated loops the detector
+  learned from keep OP inside its range;
 * no excitation: OP never moves beyond its own resolution, so the valve was
   never asked to move (manual mode, saturated output);
 * under-sampled: the loop's own cycle is shorter than ``MIN_PERIOD_SAMPLES``
   samples, or alternates sample to sample, so stick-slip cannot be resolved
   and any size estimate would be an alias;
-* cycling against OP's limits: OP swings from one limit to the other again
-  and again, as too much gain or an on-off action drives a loop with any
-  valve; a valve driven from stop to stop shows nothing of its friction, and
-  the simulator the detector learned from never draws such a loop;
 * not in control: the set point lies farther from PV than PV's whole range,
   on one side all record, while OP moves with no trend to speak of.  With
   integral action an error of one sign drives OP one way until it saturates,
@@ -38,7 +39,8 @@ import numpy as np
 
 from stiction_ros.analysis.oscillation import MIN_PERIOD_SAMPLES, period_sanity
 
-__all__ = ['cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1', 'limit_swings',
+__all__ = ['alternating', 'cycle_judgeable', 'in_control', 'Judgeable', 'judgeable', 'lag1',
+           'limit_swings',
            'MIN_PERIOD_SAMPLES', 'MIN_SAMPLES', 'period_sanity', 'robust_noise']
 
 MIN_SAMPLES = 200
@@ -63,10 +65,14 @@ ONE_SIGNED = 0.99
 NET_OP = 0.5
 OP_LIMITS = (0.5, 99.5)
 # Cycling against the limits: OP goes from one limit (OP_LIMITS) to the other at least
-# this often (twice there and back).  In the 7 500 training and calibration records it
-# never does so more than once, in the first network's 40 000 twice; detuned past
-# stability, healthy loops read as stiction (docs/DETECTION.md section 1).
+# this often (twice there and back), and stands at a limit in at least LIMIT_SHARE of
+# the samples (four trips in a long record that is otherwise inside its range are not
+# a cycle).  In the 7 500 training and calibration records OP never goes from one
+# limit to the other more than once; of the first network's corpus of 40 000, two
+# records do so 4 times or more.  Detuned past stability, healthy loops read as
+# stiction (docs/DETECTION.md section 1).
 LIMIT_SWINGS = 4
+LIMIT_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -149,15 +155,16 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
         return Judgeable(False, 'pv_constant', _constant_pv_reason(op, pv))
     # Before the frozen-OP check: an OP slammed between 0 and 100 % has two values.
     swings = limit_swings(op)
-    if swings >= LIMIT_SWINGS:
-        at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+    at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+    if swings >= LIMIT_SWINGS and at_limit >= LIMIT_SHARE:
         return Judgeable(False, 'limit_cycling',
                          f'OP swung from one limit to the other {swings} times (at 0 or 100 % '
                          f'in {100 * at_limit:.0f} % of the samples): the loop cycles against '
                          f"OP's limits, as too much controller gain or an on-off action makes "
                          f'it do with any valve, and a valve driven from stop to stop shows '
-                         f'nothing of its friction (the detector learned from no such loop); '
-                         f'retune it, or read a stretch where OP stays inside its range')
+                         f'nothing of its friction (the simulated loops the detector learned '
+                         f'from keep OP inside its range); retune it, or read a stretch where '
+                         f'OP stays inside its range')
     if _frozen(op) or float(np.ptp(op)) < MIN_OP_TRAVEL:
         # Some historians export OP as a 0-1 fraction; every threshold here is in %.
         fraction = (0.0 < float(np.ptp(op)) and float(np.max(np.abs(op))) <= 1.0
@@ -167,8 +174,8 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
         return Judgeable(False, 'no_excitation',
                          f'OP never moved more than {float(np.ptp(op)):.3g} % (manual mode or '
                          f'saturated?): the valve was never asked to move{hint}')
-    d_op, d_pv = np.diff(op), np.diff(pv)
-    if lag1(d_op) < ALTERNATING - 0.2 and lag1(pv - np.mean(pv)) < ALTERNATING:
+    d_pv = np.diff(pv)
+    if alternating(op, pv):
         return Judgeable(False, 'under_sampled',
                          f'OP and PV alternate from sample to sample: the loop cycles faster '
                          f'than 2-3 samples of {sample_time:g} s, so stick-slip cannot be '
@@ -176,6 +183,11 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
     if float(np.std(d_pv)) == 0.0:
         return Judgeable(False, 'pv_constant', 'PV does not vary')
     return in_control(op, pv, sp)
+
+
+def alternating(op: np.ndarray, pv: np.ndarray) -> bool:
+    """Return whether OP and PV alternate from sample to sample (a cycle of 2-3 samples)."""
+    return bool(lag1(np.diff(op)) < ALTERNATING - 0.2 and lag1(pv - np.mean(pv)) < ALTERNATING)
 
 
 def limit_swings(op: np.ndarray) -> int:
