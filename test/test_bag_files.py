@@ -43,6 +43,15 @@ def test_a_bag_without_some_loop_topics_is_summarised_on_those_it_has(tmp_path):
     assert sorted(s['signals']) == ['mv', 'op']
     assert [w.split(':')[0] for w in s['warnings']] == ['sp', 'pv']
     assert "no topic 'pv'" in format_summary(s)
+    # A topic recorded without a message (its publisher never ran) is named too.
+    w = BagWriter(tmp_path / 'empty', chunk_size=2048)
+    for name in ('/op', '/pv'):
+        w.add_topic(name, 'std_msgs/msg/Float64', [qos_profile(depth=100)], 'RIHS01_' + '0' * 64)
+    for i in range(200):
+        w.write('/op', f64(0.5 * i), i * 10**9)
+    w.close()
+    s = summarise(read_bag(tmp_path / 'empty'), cfg)
+    assert sorted(s['signals']) == ['op'] and 'pv: /pv has no message' in s['warnings']
 
 
 def test_schema_has_every_dependency_once_after_the_rosbag2_separator():

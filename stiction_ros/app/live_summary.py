@@ -47,6 +47,8 @@ def summarise(bag, cfg):
         k, v = on_grid(topic, ts, PHASES[PUBLISHER[name]])
         if len(k):
             grids[name] = (k, v)
+        else:
+            out['warnings'].append(f'{name}: {topic.name} has no message')
     if not grids:
         return out
     first = max(int(k[0]) for k, _ in grids.values())

@@ -34,12 +34,14 @@ about to SIGKILL it (the shutdown tests' runner does so).  Printed by
 faulthandler's C handler, it needs no GIL, so a stall inside C code shows too.
 """
 
+from collections.abc import Callable, Sequence
 import faulthandler
 import gc
 import os
 import signal
 import sys
 import threading
+from typing import Any
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
@@ -98,7 +100,7 @@ def wants_help(args=None):
     return '-h' in argv or '--help' in argv
 
 
-def params_help(nodes) -> str:
+def params_help(nodes: Sequence[Any]) -> str:
     """
     Return the parameters of ``nodes`` (node classes) as ``--help`` lists them.
 
@@ -116,11 +118,11 @@ def params_help(nodes) -> str:
     if all(issubclass(cls, SampledNode) for cls in nodes):
         shared = ', '.join(p.name for p in common_params(0.5))
         parts.append(f'Every loop node also has: {shared} ('
-                     + ', '.join(f'{cls.KIND} --help' for cls in nodes) + ' describes them).')
+                     + ', '.join(f'{cls.KIND} --help' for cls in nodes) + ' describe them).')
     return '\n'.join(parts)
 
 
-def help_text(factory, prog, nodes=None):
+def help_text(factory: Callable, prog: str, nodes: Sequence[Any] | None = None) -> str:
     """
     Return the executable's help: its module's docstring, its parameters, how to run it.
 
@@ -136,7 +138,8 @@ def help_text(factory, prog, nodes=None):
             "SIGUSR1 prints every thread's stack to stderr; the node goes on.")
 
 
-def run(factory, args=None, prog='node', nodes=None):
+def run(factory: Callable, args: list[str] | None = None, prog: str = 'node',
+        nodes: Sequence[Any] | None = None) -> int:
     """
     Create the node with ``factory()`` and spin it until shutdown; return an exit code.
 
