@@ -19,6 +19,13 @@ def test_each_probe_is_a_function_of_its_seed_alone():
         assert a.op.min() >= 0.0 and a.op.max() <= 100.0
 
 
+def test_a_loop_is_cooled_only_when_its_linear_version_does_not_settle():
+    t = np.arange(probes.SETTLE)
+    assert probes._settles(lambda kick: kick * 0.999 ** t)
+    assert not probes._settles(lambda kick: kick * np.cos(0.3 * t))
+    assert not probes._settles(lambda kick: np.minimum(kick * 1.01 ** t, 100.0))
+
+
 def test_the_gap_controller_barely_moves_op_while_the_level_stays_in_its_gap():
     # Inside the gap a tenth of the gain: OP's steps there are a fraction of those
     # outside, the signature of averaging level control (and not of a valve).

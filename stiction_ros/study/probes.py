@@ -52,15 +52,31 @@ def _pi(kc: float, ti: float, ts: float, bias: float) -> Callable[[float], float
     return step
 
 
+SETTLE = 20_000
+
+
+def _settles(run: Callable[[float], np.ndarray]) -> bool:
+    """
+    Return whether a loop's linear version, started 1 off, settles (``run(kick)`` -> PV).
+
+    Run for ``SETTLE`` samples, far longer than a record, so that a slow but
+    stable loop is not taken for an unstable one.
+    """
+    pv = run(1.0)
+    return bool(np.max(np.abs(pv[-500:])) < 1e-2)
+
+
 def equal_percentage(seed: int) -> ProbeRecord:
     """
     Return a loop through an equal-percentage valve, tuned from normal to hot.
 
     The installed gain is ``R ** (x / 100)`` up to a constant (rangeability
-    ``R``), scaled to 1 at the operating point the loop was tuned at; where
-    loads or the cycle carry the valve further open, the loop gain grows and
-    a hot tuning cycles, bounded by the gain falling again as it closes.  Half
-    the records carry a sticky valve (the Kano model) instead of a smooth one.
+    ``R``), scaled to 1 at the operating point; the loop is tuned by SIMC
+    (lambda = theta) for that gain, times 0.8-2.5, then cooled until its
+    linear version settles there.  Where loads or a cycle carry the valve
+    further open the loop gain grows, and a hot tuning cycles, bounded by the
+    gain falling again as it closes: a cycle of the characteristic, not of an
+    unstable loop.  Half the records carry a sticky valve (Kano) instead.
     """
     from stiction_ros.models import create
     rng = np.random.default_rng([seed, 11])
@@ -73,44 +89,62 @@ def equal_percentage(seed: int) -> ProbeRecord:
     gain = rng.uniform(0.5, 2.0)
     noise = rng.uniform(0.01, 0.2)
     hot = rng.uniform(0.8, 2.5)
-    rate = gain / (50.0 * ts)
-    if integrating:
-        kc = hot / (rate * ts * (delay + 2) * 4.0)
-        ti = 8.0 * (delay + 2) * ts
-    else:
-        theta = (delay + 0.5) * ts
-        kc = hot * tau / (gain * 2.0 * theta)
-        ti = max(min(tau, 8.0 * theta), ts)
     cycle = rng.uniform(0.5, 4.0) * np.sin(2.0 * np.pi * np.arange(n) / rng.uniform(20.0, 200.0))
     load = np.cumsum(rng.standard_normal(n)) * rng.uniform(0.01, 0.1)
     load = load + (cycle if rng.random() < 0.5 else 0.0)
     op0 = rng.uniform(20.0, 80.0)
-    ln_r = math.log(rangeability)
-
-    def installed(x: float) -> float:
-        # Unit slope at op0, so the tuning holds there and only there.
-        return 100.0 / ln_r * (rangeability ** ((min(max(x, 0.0), 100.0) - op0) / 100.0) - 1.0)
     valve = None
     if label:
         stick = rng.uniform(1.0, 6.0)
         valve = create('kano', S=stick, J=stick * rng.uniform(0.2, 1.0))
         valve.reset(y0=op0)
-    pi = _pi(kc, ti, ts, op0)
-    a = math.exp(-ts / tau)
-    x, queue = 0.0, [0.0] * (delay + 1)
-    op, pv = np.empty(n), np.empty(n)
-    for k in range(n):
-        pv[k] = x + noise * rng.standard_normal()
-        op[k] = pi(-pv[k])
-        position = valve.step(op[k]) if valve is not None else op[k]
-        queue.append(installed(position) + load[k])
-        u = queue.pop(0)
-        x = x + rate * ts * u if integrating else a * x + (1.0 - a) * gain * u
+    white = rng.standard_normal(n)
+    ln_r = math.log(rangeability)
+    rate = gain / (50.0 * ts)
+    # OP reaches the plant delay + 1 samples later, and the hold adds half a sample.
+    theta = (delay + 1.5) * ts
+    if integrating:
+        kc0, ti = 1.0 / (rate * 2.0 * theta), 8.0 * theta
+    else:
+        kc0, ti = tau / (gain * 2.0 * theta), max(min(tau, 8.0 * theta), ts)
+
+    def installed(x: float) -> float:
+        # Unit slope at op0, so the tuning holds there and only there.
+        return 100.0 / ln_r * (rangeability ** ((min(max(x, 0.0), 100.0) - op0) / 100.0) - 1.0)
+
+    def simulate(kc: float, kick: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        # kick: the linear version (no valve, characteristic, load or noise), 1 off.
+        pi = _pi(kc, ti, ts, op0)
+        a = math.exp(-ts / tau)
+        x, queue = kick, [0.0] * (delay + 1)
+        m = SETTLE if kick else n
+        op, pv = np.empty(m), np.empty(m)
+        for k in range(m):
+            pv[k] = x + (0.0 if kick else noise * white[k])
+            op[k] = pi(-pv[k])
+            if kick:
+                queue.append(op[k] - op0)
+            else:
+                position = valve.step(op[k]) if valve is not None else op[k]
+                queue.append(installed(position) + load[k])
+            u = queue.pop(0)
+            x = x + rate * ts * u if integrating else a * x + (1.0 - a) * gain * u
+        return op, pv
+    for _ in range(30):
+        if _settles(lambda kick: simulate(hot * kc0, kick)[1]):
+            break
+        hot *= 0.85
+    op, pv = simulate(hot * kc0)
     return ProbeRecord(op, pv, np.zeros(n), ts, integrating, label)
 
 
 def _level_loop(seed: int, law: Callable[[float, float], float]) -> ProbeRecord:
-    """Return a healthy level loop (an integrating tank) under a nonlinear controller law."""
+    """
+    Return a healthy level loop (an integrating tank) under a nonlinear controller law.
+
+    The PI gains are drawn, then cooled until the loop under the plain linear
+    law settles, so that a cycle is the law's doing and not an unstable tuning.
+    """
     rng = np.random.default_rng([seed, 13])
     ts, n = SAMPLE_TIME, SAMPLES
     rate = rng.uniform(0.002, 0.02)            # % level per % valve per second
@@ -123,17 +157,30 @@ def _level_loop(seed: int, law: Callable[[float, float], float]) -> ProbeRecord:
     inflow = mv0 + walk - walk[0]
     if rng.random() < 0.5:
         inflow[int(n * rng.uniform(0.2, 0.8)):] += rng.uniform(-5.0, 5.0)
-    level = measured = 50.0 + rng.uniform(-2.0, 2.0)
-    pi = _pi(kc, ti, ts, mv0)
-    queue = [mv0] * (delay + 1)
-    op, pv = np.empty(n), np.empty(n)
-    for k in range(n):
-        measured = damping * measured + (1.0 - damping) * level
-        pv[k] = measured + noise * rng.standard_normal()
-        # An outflow valve: a high level opens it (direct action).
-        op[k] = pi(law(pv[k] - 50.0, gap))
-        queue.append(op[k])
-        level += rate * ts * (inflow[k] - queue.pop(0))
+    start = 50.0 + rng.uniform(-2.0, 2.0)
+    white = rng.standard_normal(n)
+
+    def simulate(kc: float, kick: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        # kick: the plain linear law, no load or noise, the level 1 off its set point.
+        level = measured = 50.0 + kick if kick else start
+        pi = _pi(kc, ti, ts, mv0)
+        queue = [mv0] * (delay + 1)
+        m = SETTLE if kick else n
+        op, pv = np.empty(m), np.empty(m)
+        for k in range(m):
+            measured = damping * measured + (1.0 - damping) * level
+            pv[k] = measured + (0.0 if kick else noise * white[k])
+            # An outflow valve: a high level opens it (direct action).
+            e = pv[k] - 50.0
+            op[k] = pi(e if kick else law(e, gap))
+            queue.append(op[k])
+            level += rate * ts * ((mv0 if kick else inflow[k]) - queue.pop(0))
+        return op, pv - 50.0 if kick else pv
+    for _ in range(30):
+        if _settles(lambda kick: simulate(kc, kick)[1]):
+            break
+        kc *= 0.85
+    op, pv = simulate(kc)
     return ProbeRecord(op, pv, np.full(n, 50.0), ts, True, False)
 
 
@@ -169,12 +216,13 @@ def detuned(seed: int) -> ProbeRecord:
 # name, what it stands for, generator.
 PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
-     'hotter than its gain at the operating point calls for; half sticky (Kano, S 1-6 %)',
-     equal_percentage),
+     'hotter than SIMC for its gain at the operating point, then cooled until the linear '
+     'loop settles there; half sticky (Kano, S 1-6 %)', equal_percentage),
     ('gap level', 'a level loop whose controller has a tenth of its gain inside a gap of '
-     '1-6 % (averaging level control); healthy', gap_level),
-    ('error-squared level', 'a level loop under an error-squared PI law; healthy',
-     error_squared_level),
+     '1-6 % (averaging level control), tuned so that the plain PI law settles; healthy',
+     gap_level),
+    ('error-squared level', 'a level loop under an error-squared PI law, tuned so that the '
+     'plain PI law settles; healthy', error_squared_level),
     ('detuned', 'a corpus loop with its controller gain raised 3-15 times, both labels',
      detuned),
 )
@@ -223,7 +271,8 @@ class Probes:
                 'rows': self.rows()}
 
 
-def run(seeds: range, jobs: int = 1, say=None) -> Probes:
+def run(seeds: range, jobs: int = 1,
+        say: Callable[[int, int, float], None] | None = None) -> Probes:
     """Return the detector's answers on every probe of :data:`PROBES` for ``seeds``."""
     t0, got = time.perf_counter(), []
     jobs_list = [(j, s) for j in range(len(PROBES)) for s in seeds]
