@@ -11,15 +11,11 @@ the model never saw; these seeds choose nothing.
 """
 
 import argparse
-import datetime
-import json
 import os
-from pathlib import Path
-import platform
 import sys
 
 from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description
+from stiction_ros.cli.text import description, run_stamp, write_study
 from stiction_ros.errors import DetectorFileError
 
 # Seeds of the probes' own generators (streams [seed, 11] and [seed, 13]) and of the
@@ -86,14 +82,9 @@ def main(argv: list[str] | None = None) -> int:
     except DetectorFileError as err:
         print(f'stiction-probes: error: {err}', file=sys.stderr)
         return 2
-    out = {**study.to_json(), 'run': {'date': datetime.date.today().isoformat(),
-                                      'machine': f'{platform.machine()}, {os.cpu_count()} '
-                                                 f'cores, {args.jobs} jobs'}}
+    out = {**study.to_json(), 'run': run_stamp(args.jobs)}
     try:
-        for path, text in ((args.json, json.dumps(out, indent=1) + '\n'),
-                           (args.markdown, markdown(out))):
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-            Path(path).write_text(text, encoding='utf-8')
+        write_study(out, args.json, args.markdown, markdown)
     except OSError as err:
         print(f'stiction-probes: error: cannot write {err.filename}: {err.strerror}',
               file=sys.stderr)

@@ -13,16 +13,12 @@ chosen here), so the first row repeats the simulated row of docs/ACCURACY.md.
 """
 
 import argparse
-import datetime
-import json
 import os
-from pathlib import Path
-import platform
 import sys
 
 from stiction_ros.analysis.detection import dataset
 from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description, pipe_safe
+from stiction_ros.cli.text import description, pipe_safe, run_stamp, write_study
 from stiction_ros.errors import DetectorFileError
 
 # The scoring seeds of make accuracy: the first row repeats its simulated row.
@@ -153,12 +149,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'stiction-robustness: error: {err}', file=sys.stderr)
         return 2
     out = {**study.to_json(), 'skew_choice': choice,
-           'run': {'date': datetime.date.today().isoformat(),
-                   'machine': f'{platform.machine()}, {os.cpu_count()} cores, {args.jobs} jobs'}}
-    for path, text in ((args.json, json.dumps(out, indent=1) + '\n'),
-                       (args.markdown, markdown(out))):
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text, encoding='utf-8')
+           'run': run_stamp(args.jobs)}
+    write_study(out, args.json, args.markdown, markdown)
     for r in out['rows']:
         print(f"{r['condition']:>18}: {r['balanced_accuracy']:.3f} at 0.5 "
               f"({r['tp']}/{r['tp'] + r['fn']} sticky found, {r['fp']}/{r['fp'] + r['tn']} "

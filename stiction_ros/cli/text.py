@@ -1,7 +1,11 @@
-"""What every command shares: its ``--help`` description, and a quiet end on a closed pipe."""
+"""What every command shares: its ``--help`` description, a quiet end on a closed pipe, pages."""
 
+import datetime
 import functools
+import json
 import os
+from pathlib import Path
+import platform
 import re
 import sys
 from typing import Callable
@@ -37,3 +41,18 @@ def pipe_safe(main: Callable[..., int]) -> Callable[..., int]:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
     return run
+
+
+def write_study(study: dict, json_path: str, markdown_path: str,
+                page: Callable[[dict], str]) -> None:
+    """Write a study's JSON and its page (``page(study)``), creating their folders."""
+    for path, text in ((json_path, json.dumps(study, indent=1) + '\n'),
+                       (markdown_path, page(study))):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text, encoding='utf-8')
+
+
+def run_stamp(jobs: int) -> dict:
+    """Return when and on what a study ran, for its page: the date, the machine and jobs."""
+    return {'date': datetime.date.today().isoformat(),
+            'machine': f'{platform.machine()}, {os.cpu_count()} cores, {jobs} jobs'}
