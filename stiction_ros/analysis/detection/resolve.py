@@ -155,8 +155,10 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
         return Judgeable(False, 'pv_constant', _constant_pv_reason(op, pv))
     # Before the frozen-OP check: an OP slammed between 0 and 100 % has two values.
     swings = limit_swings(op)
-    at_limit = float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
-    if swings >= LIMIT_SWINGS and at_limit >= LIMIT_SHARE:
+    # The share only where the swings are there: most records never reach a limit.
+    at_limit = (float(np.mean((op <= OP_LIMITS[0]) | (op >= OP_LIMITS[1])))
+                if swings >= LIMIT_SWINGS else 0.0)
+    if at_limit >= LIMIT_SHARE:
         return Judgeable(False, 'limit_cycling',
                          f'OP swung from one limit to the other {swings} times (at 0 or 100 % '
                          f'in {100 * at_limit:.0f} % of the samples): the loop cycles against '
