@@ -103,7 +103,8 @@ def test_kano_valve_holds_until_op_passes_the_band():
 def test_sampled_plant_matches_continuous_simulation(integrating, gain, tau, tau2, delay):
     ts, n, fine = 10.0, 80, 100
     sc = dataclasses.replace(draw_scenario(0), integrating=integrating, gain=gain, tau=tau,
-                             tau2=tau2, delay=delay, sample_time=ts, samples=n)
+                             tau2=tau2, delay=delay, sample_time=ts, samples=n,
+                             rangeability=1.0)
     mv = np.full(n, 50.0)
     mv[5:], mv[30:], mv[55:] = 60.0, 45.0, 52.0
     pv = plant_response(sc, mv, mv0=50.0)

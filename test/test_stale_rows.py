@@ -106,7 +106,7 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
     # A sticky loop whose historian paused for 40 rows early on: the fresh rows
     # are the clean record, so the answer is the same, and every stuck period
     # is reported 40 rows later, where it sits in the record as given.
-    sc = draw_scenario(312, label=True)
+    sc = draw_scenario(321, label=True)
     rec = simulate(sc)
     at, pause = 20, 40
     idx = np.concatenate([np.arange(at + 1), np.full(pause, at),

@@ -7,11 +7,15 @@ the valve moves, and MV is held over the sample while the plant advances
 (zero-order hold; an integer dead time as a ring of past MV and a fractional
 remainder as a second held segment, as in ``stiction_ros.sim.plant``).  Valves are
 the project's compiled one-sample kernels (``loop_kernel.valve_step``) plus a
-positioner with a finite resolution, which the project has no model for.
+positioner with a finite resolution, which the project has no model for.  The
+plant sees the flow of the valve's installed characteristic, and the PI may act
+on its error through a level controller's nonlinear law (gap or error squared).
 
 :func:`loop_matrix` is the same loop linearised (no clamps, ideal valve), so
 that scenario drawing can place the closed-loop poles before simulating.
 """
+
+import math
 
 import numpy as np
 
@@ -23,8 +27,10 @@ from stiction_ros.kernels.plant import plant_output
 # Outside the range of ``loop_kinds`` so that it can never reach valve_step.
 QUANTISED = -1
 # PI constants and sensor settings, as indices into the arrays of run_corpus_loop.
-P_KC, P_KI, P_SIGN, P_BIAS = range(4)
-S_PV0, S_MV0, S_RES, S_FREEZE0, S_FREEZE1 = range(5)
+P_KC, P_KI, P_SIGN, P_BIAS, P_LAW, P_GAP, P_INNER = range(7)
+S_PV0, S_MV0, S_RES, S_FREEZE0, S_FREEZE1, S_RANGE = range(6)
+# Controller laws (``pid[P_LAW]``): plain PI, a gap with less gain inside, error squared.
+LAW_PI, LAW_GAP, LAW_SQUARED = range(3)
 
 
 @njit(cache=True)
@@ -33,6 +39,41 @@ def _quantise(value: float, step: float) -> float:
     if step <= 0.0:
         return value
     return step * np.floor(value / step + 0.5)
+
+
+@njit(cache=True)
+def installed_flow(mv: float, mv0: float, rangeability: float) -> float:
+    """
+    Return the flow change of an equal-percentage valve moved from ``mv0`` to ``mv`` (%).
+
+    Scaled to unit slope at ``mv0``, so that a loop tuned at its operating
+    point keeps that tuning there; its gain grows ``rangeability`` times over
+    the whole travel as the valve opens.  A rangeability of 1 or less is a
+    linear valve.
+    """
+    if rangeability <= 1.0:
+        return mv - mv0
+    ln_r = math.log(rangeability)
+    return 100.0 / ln_r * (math.exp(ln_r * (mv - mv0) / 100.0) - 1.0)
+
+
+@njit(cache=True)
+def controller_law(e: float, law: int, gap: float, inner: float) -> float:
+    """
+    Return the error the PI acts on under a level controller's ``law``.
+
+    A gap controller has ``inner`` times its gain while ``|e| < gap`` and
+    its full gain outside, continuous at the gap; error squared scales the
+    gain by ``|e| / gap``.  Both let a level swing in its tank (averaging
+    control), which a plain PI would hold tight.
+    """
+    if law == LAW_GAP:
+        if abs(e) < gap:
+            return inner * e
+        return e - math.copysign((1.0 - inner) * gap, e)
+    if law == LAW_SQUARED:
+        return e * abs(e) / gap
+    return e
 
 
 @njit(cache=True)
@@ -48,8 +89,10 @@ def run_corpus_loop(sp: Floats, op_open: Floats, pv_load: Floats, pv_meas: Float
     units, before the sensor); ``pv_meas`` the additive measurement error
     (noise, spikes, drift); ``op_open`` OP to apply instead of the PI (open
     loop) or empty.  ``pid`` holds ``Kc``, ``Kc ts / Ti``, the action sign (+1
-    reverse, -1 direct) and the bias; ``sens`` holds ``pv0``, ``mv0``, the PV
-    resolution (0 = none) and the frozen stretch (from, to sample).  ``kind``
+    reverse, -1 direct), the bias, the law (:func:`controller_law`), its gap
+    and inner gain; ``sens`` holds ``pv0``, ``mv0``, the PV resolution (0 =
+    none), the frozen stretch (from, to sample) and the valve's rangeability
+    (:func:`installed_flow`).  ``kind``
     to ``jmax`` are the valve (``ValveModel.loop_args`` and ``state``, which is
     updated in place); ``kind == QUANTISED`` rounds OP to ``quantum``.
     ``phi`` to ``fractional`` are the sampled plant (``TransferFunctionPlant``),
@@ -67,6 +110,7 @@ def run_corpus_loop(sp: Floats, op_open: Floats, pv_load: Floats, pv_meas: Float
     pv0 = sens[S_PV0]
     mv0 = sens[S_MV0]
     sign = pid[P_SIGN]
+    law = int(pid[P_LAW])
     for k in range(n):
         # Strictly proper plants only: no feedthrough of the held input.
         pv = plant_output(c, x, 0.0, 0.0, pv0) + pv_load[k] + pv_meas[k]
@@ -78,7 +122,7 @@ def run_corpus_loop(sp: Floats, op_open: Floats, pv_load: Floats, pv_meas: Float
         if op_open.shape[0] > 0:
             op = op_open[k]
         else:
-            e = sign * (sp[k] - pv)
+            e = sign * controller_law(sp[k] - pv, law, pid[P_GAP], pid[P_INNER])
             raw = pid[P_BIAS] + pid[P_KC] * e + integral
             op = min(max(raw, 0.0), 100.0)
             di = pid[P_KI] * e
@@ -95,7 +139,8 @@ def run_corpus_loop(sp: Floats, op_open: Floats, pv_load: Floats, pv_meas: Float
             u1[0] = op
             valve_step(kind, u1, y1, st, fp, arr, phis, hs, q, jmax)
             mv = y1[0]
-        hpos = hold_input(mv - mv0, phi, x, xn, g0, g1, hist, hpos, m, fractional)
+        flow = installed_flow(mv, mv0, sens[S_RANGE])
+        hpos = hold_input(flow, phi, x, xn, g0, g1, hist, hpos, m, fractional)
         out_op[k] = op
         out_mv[k] = mv
         out_pv[k] = pv

@@ -9,21 +9,26 @@ chemical plant's flow, pressure, level and slow quality loops vary, and half
 of the healthy records carry a condition that imitates stiction
 (``LOOK_ALIKES``).  Loads, noise and set points are drawn the same way for
 both labels, so the label shows only through the valve and the look-alikes.
+So are two things a plant has that a linear PI loop lacks: an equal-percentage
+valve, whose loop gain grows as it opens, and on level loops a gap or
+error-squared controller, which lets the level swing.
 
 Time constants are drawn in samples (what a historian export shows) and
 converted to seconds.  Everything follows from the seed: ``draw_scenario``
-draws from ``default_rng(seed)``, ``simulate`` draws the signals (loads, set
-point, noise, faults) from ``default_rng([seed, 1])``.
+draws from ``default_rng(seed)`` and the characteristic and controller law
+from ``default_rng([seed, 3])`` (added on 2026-11-29, so that every other draw
+stayed what it was), ``simulate`` draws the signals (loads, set point, noise,
+faults) from ``default_rng([seed, 1])``.
 """
 
 from dataclasses import asdict, dataclass
-import math
 
 import numpy as np
-from scipy import signal
 
-from stiction_ros.kernels.corpus import loop_matrix, min_damping, QUANTISED, run_corpus_loop
+from stiction_ros.kernels.corpus import installed_flow, LAW_GAP, LAW_PI, LAW_SQUARED, \
+    loop_matrix, min_damping, QUANTISED, run_corpus_loop
 from stiction_ros.models import create
+from stiction_ros.sim.corpus_signals import loads, logu, measurement, pick, set_point
 from stiction_ros.sim.plant import TransferFunctionPlant
 
 LOOK_ALIKES = ('aggressive_tuning', 'load_cycle', 'integrating_cycle', 'backlash', 'quantised',
@@ -37,6 +42,10 @@ FLOORS = {'sluggish': 0.45, 'normal': 0.3, 'aggressive': 0.2}
 RINGING = (0.02, 0.15)
 OP_LOW, OP_HIGH = 8.0, 92.0
 OP_JITTER = 2.0     # largest OP noise std (%) that the PV noise may cause
+# Shares of equal-percentage valves (all loops) and of nonlinear laws (integrating loops).
+EQUAL_PERCENTAGE = 0.3
+NONLINEAR_LAW = 0.3
+LAWS = {'': LAW_PI, 'gap': LAW_GAP, 'squared': LAW_SQUARED}
 
 
 @dataclass(frozen=True)
@@ -66,18 +75,14 @@ class Scenario:
     tuning: str
     noise_std: float
     look_alike: str
+    rangeability: float = 1.0
+    law: str = ''
+    gap: float = 0.0
+    inner: float = 1.0
 
     def to_json(self) -> dict:
         """Return the scenario as a dict of plain JSON types."""
         return asdict(self)
-
-
-def _logu(rng, lo, hi):
-    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
-
-
-def _pick(rng, options, p=None):
-    return str(options[int(rng.choice(len(options), p=p))])
 
 
 def draw_label(seed: int, balance: float = 0.5) -> bool:
@@ -111,29 +116,29 @@ def _draw_plant(rng, integrating):
     """Return tau, tau2, delay (samples), |gain| per % (per sample if integrating), noise."""
     if integrating:
         if rng.random() < 0.8:     # level: short lag, little dead time, turbulent surface
-            tau, delay = _logu(rng, 0.1, 5.0), (0.0 if rng.random() < 0.5 else rng.uniform(0, 2))
+            tau, delay = logu(rng, 0.1, 5.0), (0.0 if rng.random() < 0.5 else rng.uniform(0, 2))
             tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < 0.15 else 0.0
-            residence, noise = _logu(rng, 10.0, 500.0), _logu(rng, 0.03, 1.5)
+            residence, noise = logu(rng, 10.0, 500.0), logu(rng, 0.03, 1.5)
         else:                      # gas holder, header pressure, batch quality
-            tau, delay = _logu(rng, 0.5, 20.0), _logu(rng, 0.5, 8.0)
+            tau, delay = logu(rng, 0.5, 20.0), logu(rng, 0.5, 8.0)
             tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < 0.3 else 0.0
-            residence, noise = _logu(rng, 5.0, 300.0), _logu(rng, 0.01, 0.8)
-        return tau, tau2, delay, _logu(rng, 0.2, 5.0) / residence, noise
-    kind = _pick(rng, ('flow', 'pressure', 'slow', 'any'), [0.4, 0.2, 0.15, 0.25])
+            residence, noise = logu(rng, 5.0, 300.0), logu(rng, 0.01, 0.8)
+        return tau, tau2, delay, logu(rng, 0.2, 5.0) / residence, noise
+    kind = pick(rng, ('flow', 'pressure', 'slow', 'any'), [0.4, 0.2, 0.15, 0.25])
     if kind == 'flow':             # faster than the historian: tau under a few samples
-        tau, p2, noise = _logu(rng, 0.1, 3.0), 0.2, _logu(rng, 0.1, 2.5)
+        tau, p2, noise = logu(rng, 0.1, 3.0), 0.2, logu(rng, 0.1, 2.5)
         delay = 0.0 if rng.random() < 0.6 else rng.uniform(0.0, 1.5)
     elif kind == 'pressure':
-        tau, p2, noise = _logu(rng, 0.5, 15.0), 0.3, _logu(rng, 0.03, 1.0)
+        tau, p2, noise = logu(rng, 0.5, 15.0), 0.3, logu(rng, 0.03, 1.0)
         delay = 0.0 if rng.random() < 0.4 else rng.uniform(0.0, 2.0)
     elif kind == 'slow':           # temperature, composition: lags in series, dead time
-        tau, p2, noise = _logu(rng, 3.0, 40.0), 0.7, _logu(rng, 0.01, 0.3)
-        delay = _logu(rng, 1.0, 8.0)
+        tau, p2, noise = logu(rng, 3.0, 40.0), 0.7, logu(rng, 0.01, 0.3)
+        delay = logu(rng, 1.0, 8.0)
     else:
-        tau, p2, noise = _logu(rng, 0.1, 40.0), 0.4, _logu(rng, 0.01, 2.0)
-        delay = rng.uniform(0.0, 1.0) if rng.random() < 0.5 else _logu(rng, 1.0, 8.0)
+        tau, p2, noise = logu(rng, 0.1, 40.0), 0.4, logu(rng, 0.01, 2.0)
+        delay = rng.uniform(0.0, 1.0) if rng.random() < 0.5 else logu(rng, 1.0, 8.0)
     tau2 = tau * rng.uniform(0.1, 1.0) if rng.random() < p2 else 0.0
-    return tau, tau2, delay, _logu(rng, 0.2, 5.0), noise
+    return tau, tau2, delay, logu(rng, 0.2, 5.0), noise
 
 
 def _tune(rng, tuning, integrating, tau, tau2, delay, gain):
@@ -148,14 +153,14 @@ def _tune(rng, tuning, integrating, tau, tau2, delay, gain):
     if tuning == 'sluggish':
         lam = rng.uniform(3.0, 10.0) * max(theta, tau1)
     elif tuning == 'normal':
-        lam = _logu(rng, 1.0, 3.0) * ref
+        lam = logu(rng, 1.0, 3.0) * ref
     else:
         lam = rng.uniform(0.2, 0.5) * ref
     if integrating:
         kc, ti = 1.0 / (gain * (lam + theta)), 4.0 * (lam + theta)
     else:
         kc, ti = tau1 / (gain * (lam + theta)), min(tau1, 4.0 * (lam + theta))
-    return kc * _logu(rng, 0.6, 1.6), ti * _logu(rng, 0.6, 1.6)
+    return kc * logu(rng, 0.6, 1.6), ti * logu(rng, 0.6, 1.6)
 
 
 def _place(plant, sign, kc, ki, floor, ceiling=None):
@@ -206,26 +211,26 @@ def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
     label = first < 0.5 if label is None else bool(label)
     S = J = quantum = 0.0
     if label:
-        valve = _pick(rng, STICTION_VALVES, [0.4, 0.3, 0.3])
-        S = _logu(rng, 0.3, 10.0)
+        valve = pick(rng, STICTION_VALVES, [0.4, 0.3, 0.3])
+        S = logu(rng, 0.3, 10.0)
         J = S * rng.uniform(0.1, 1.5)
-        look = _pick(rng, STICTION_EXTRAS) if rng.random() < 0.3 else ''
+        look = pick(rng, STICTION_EXTRAS) if rng.random() < 0.3 else ''
     else:
-        look = _pick(rng, LOOK_ALIKES) if rng.random() < 0.5 else ''
+        look = pick(rng, LOOK_ALIKES) if rng.random() < 0.5 else ''
         valve = look if look in ('backlash', 'quantised') else 'linear'
         if look == 'backlash':
-            S = _logu(rng, 0.3, 5.0)
+            S = logu(rng, 0.3, 5.0)
         elif look == 'quantised':
-            quantum = _logu(rng, 0.1, 1.5)
-    ts = float(_pick(rng, (10.0, 5.0, 1.0), [0.75, 0.1, 0.15]))
+            quantum = logu(rng, 0.1, 1.5)
+    ts = float(pick(rng, (10.0, 5.0, 1.0), [0.75, 0.1, 0.15]))
     samples = (int(rng.integers(700, 801)) if rng.random() < 0.45
-               else int(round(_logu(rng, 500.0, 2500.0))))
+               else int(round(logu(rng, 500.0, 2500.0))))
     integrating = look == 'integrating_cycle' or rng.random() < 0.3
     if look == 'aggressive_tuning' or (look == 'integrating_cycle' and rng.random() < 0.5):
         tuning = 'aggressive'
     else:
-        tuning = _pick(rng, ('sluggish', 'normal', 'aggressive'),
-                       [0.45, 0.4, 0.15] if integrating else [0.3, 0.5, 0.2])
+        tuning = pick(rng, ('sluggish', 'normal', 'aggressive'),
+                      [0.45, 0.4, 0.15] if integrating else [0.3, 0.5, 0.2])
     ringing = tuning == 'aggressive' and look in ('aggressive_tuning', 'integrating_cycle')
     sign = -1.0 if rng.random() < 0.25 else 1.0     # direct-acting loops
     common = {'seed': int(seed), 'label': bool(label), 'valve': valve, 'S': float(S),
@@ -245,110 +250,35 @@ def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
             break
     sc = _replace(sc, Kc=float(kc), Ti=float(kc / ki * ts))
     # Nobody runs a loop whose OP jitters by more than a few % from noise alone.
-    return _replace(sc, noise_std=float(min(noise * pv_scale(sc), OP_JITTER / kc)))
+    sc = _replace(sc, noise_std=float(min(noise * pv_scale(sc), OP_JITTER / kc)))
+    return _draw_plant_nonlinearity(np.random.default_rng([seed, 3]), sc)
+
+
+def _draw_plant_nonlinearity(rng, sc):
+    """
+    Return ``sc`` with its valve characteristic and, on an integrating loop, its law.
+
+    Every value is drawn whether used or not, so that each stays the same
+    when another changes.  The tuning is that of the operating point, where
+    the characteristic's slope is 1 and the law is set aside, as an engineer
+    tunes; away from it the loop gain is what the nonlinearity makes it.
+    """
+    equal, rangeability = rng.random() < EQUAL_PERCENTAGE, logu(rng, 10.0, 50.0)
+    nonlinear, law = rng.random() < NONLINEAR_LAW, pick(rng, ('gap', 'squared'))
+    # In PV units.  Error squared reaches the PI's gain only at the gap, so it is
+    # drawn wider: within it the law is gentler than the PI it replaces.
+    size = logu(rng, 0.3, 3.0) * (3.0 if law == 'squared' else 1.0)
+    gap, inner = size * max(pv_scale(sc), sc.noise_std), rng.uniform(0.05, 0.3)
+    if not (sc.integrating and nonlinear):
+        law, gap, inner = '', 0.0, 1.0
+    return _replace(sc, rangeability=float(rangeability if equal else 1.0), law=law,
+                    gap=float(gap), inner=float(inner))
 
 
 def _replace(sc, **changes):
     values = asdict(sc)
     values.update(changes)
     return Scenario(**values)
-
-
-def _filtered(x, tau_samples):
-    a = math.exp(-1.0 / tau_samples)
-    b, den = [1.0 - a], [1.0, -a]
-    return signal.lfilter(b, den, x, zi=signal.lfilter_zi(b, den) * x[0])[0]
-
-
-def _periodic(rng, n):
-    """Return a load cycle (% MV): sine, or square or triangle as upstream on/off loops make."""
-    period = _logu(rng, 15.0, 3.0 * n)
-    phase = 2.0 * math.pi * (np.arange(n) / period) + rng.uniform(0.0, 2.0 * math.pi)
-    shape = _pick(rng, ('sine', 'square', 'triangle'), [0.6, 0.2, 0.2])
-    if shape == 'sine':
-        wave = np.sin(phase)
-    elif shape == 'square':
-        wave = np.sign(np.sin(phase))
-    else:
-        wave = 2.0 / math.pi * np.arcsin(np.sin(phase))
-    return _logu(rng, 0.3, 5.0) * wave
-
-
-def _loads(rng, sc, n):
-    """Return the load (% MV equivalent, before its lag): steps, drift and any cycle."""
-    activity = _pick(rng, ('quiet', 'normal', 'busy'), [0.25, 0.5, 0.25])
-    amp = {'quiet': 0.25, 'normal': 1.0, 'busy': 3.0}[activity]
-    load = np.zeros(n)
-    for _ in range(int(rng.integers(0, 2 if activity == 'quiet' else 5))):
-        at = int(rng.uniform(0.05, 0.95) * n)
-        load[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, 0.3, 4.0) * amp
-    if rng.random() < 0.7:
-        # A random walk: feed rates and upstream conditions wander without bound.
-        walk = np.cumsum(rng.standard_normal(n))
-        load += walk * (_logu(rng, 0.3, 4.0) * amp / max(float(np.std(walk)), 1e-9))
-    tuned_cycle = sc.look_alike == 'integrating_cycle' and sc.tuning == 'aggressive'
-    if sc.look_alike == 'load_cycle' or (sc.look_alike == 'integrating_cycle'
-                                         and not tuned_cycle):
-        cycle = _periodic(rng, n)
-        # The cycle is the condition this record is about: other loads stay smaller.
-        load *= min(1.0, float(np.ptp(cycle)) / max(2.0 * float(np.std(load)), 1e-9))
-        load += cycle
-    return _filtered(load - load[0], _logu(rng, 0.3, 30.0))
-
-
-def _set_point(rng, sc, n):
-    """
-    Return set-point moves in % MV equivalent, of the kinds historians show.
-
-    Held; a few operator steps; many small operator moves; or a remote set
-    point: a cascade secondary's SP is its master's output and moves a little
-    at almost every sample (a tenth of the shared plant records have more
-    set-point moves than the corpus drew before).  Level loops are mostly
-    masters, and mostly hold theirs.
-    """
-    p = [0.8, 0.15, 0.05, 0.0] if sc.integrating else [0.35, 0.35, 0.15, 0.15]
-    kind = _pick(rng, ('held', 'steps', 'busy', 'remote'), p)
-    moves = np.zeros(n)
-    if kind in ('steps', 'busy'):
-        count, size = ((1, 4), (0.5, 8.0)) if kind == 'steps' else ((4, 16), (0.2, 3.0))
-        for _ in range(int(rng.integers(*count))):
-            at = int(rng.uniform(0.05, 0.95) * n)
-            moves[at:] += rng.choice((-1.0, 1.0)) * _logu(rng, *size)
-    elif kind == 'remote':
-        walk = np.cumsum(rng.standard_normal(n))
-        walk = _filtered(walk - walk[0], _logu(rng, 2.0, 50.0))
-        moves = walk * (_logu(rng, 0.5, 6.0) / max(float(np.std(walk)), 1e-9))
-    return moves
-
-
-def _measurement(rng, sc, n, scale):
-    """Return additive measurement error, PV resolution and the frozen stretch."""
-    white = rng.standard_normal(n)
-    if rng.random() < 0.35:
-        # Coloured: transmitter damping or process turbulence slower than a sample.
-        white = signal.lfilter([1.0], [1.0, -rng.uniform(0.5, 0.95)], white)
-        white /= max(float(np.std(white)), 1e-12)
-    err = sc.noise_std * white
-    res, frozen = 0.0, (-1, -1)
-    if sc.look_alike == 'pv_quantisation':
-        res = _logu(rng, 0.8, 6.0) * max(sc.noise_std, 0.05 * scale)
-    elif sc.look_alike == 'sensor_fault':
-        fault = _pick(rng, ('spikes', 'drift', 'freeze'))
-        if fault == 'spikes':
-            for _ in range(int(rng.integers(3, 30))):
-                at = int(rng.integers(0, n))
-                err[at:at + int(rng.integers(1, 4))] += (
-                    rng.choice((-1.0, 1.0)) * _logu(rng, 3.0, 15.0)
-                    * max(sc.noise_std, 0.2 * scale))
-        elif fault == 'drift':
-            start = int(rng.uniform(0.0, 0.6) * n)
-            ramp = np.clip((np.arange(n) - start) / max(n - start, 1), 0.0, None)
-            err += rng.choice((-1.0, 1.0)) * _logu(rng, 1.0, 10.0) * scale * ramp
-        else:
-            length = int(_logu(rng, 30.0, 0.4 * n))
-            start = int(rng.integers(int(0.1 * n), max(int(0.9 * n) - length, int(0.1 * n) + 1)))
-            frozen = (start, start + length)
-    return err, res, frozen
 
 
 def _valve(sc, mv0):
@@ -366,6 +296,18 @@ def _valve(sc, mv0):
     model.step(mv0)
     kind, fp, arr, phis, hs, q, jmax = model.loop_args()
     return (kind, fp, model.state, arr, phis, hs, q, jmax)
+
+
+def _operating_point(rng, sc):
+    """Return MV at rest before the record starts, the first draw of the signals' stream."""
+    mv0 = rng.uniform(20.0, 80.0)
+    return sc.quantum * round(mv0 / sc.quantum) if sc.valve == 'quantised' else mv0
+
+
+def _controller(sc, sign, bias):
+    ts = sc.sample_time
+    return np.array([sc.Kc, sc.Kc * ts / sc.Ti, sign, bias, float(LAWS[sc.law]), sc.gap,
+                     sc.inner])
 
 
 def _run(sc, plant, sp, op_open, pv_load, err, pid, sens, mv0):
@@ -393,17 +335,18 @@ def simulate(scenario: Scenario) -> dict:
     rng = np.random.default_rng([sc.seed, 1])
     n, ts = sc.samples, sc.sample_time
     plant = plant_model(sc)
-    mv0 = rng.uniform(20.0, 80.0)
-    if sc.valve == 'quantised':
-        mv0 = sc.quantum * round(mv0 / sc.quantum)
+    mv0 = _operating_point(rng, sc)
     pv0 = rng.uniform(10.0, 90.0)
     scale = pv_scale(sc)
-    sp_mv = _set_point(rng, sc, n)
-    load = _loads(rng, sc, n)
+    sp_mv = set_point(rng, sc, n)
+    load = loads(rng, sc, n)
     # Shrink loads and set-point moves together so that the OP they call for
-    # stays inside the valve's range (a saturated loop teaches nothing).
+    # stays inside the valve's range (a saturated loop teaches nothing); they
+    # are in flow, which the characteristic gives less of as the valve closes.
     need = (0.0 if sc.integrating else sp_mv) - load
-    room = min((OP_HIGH - mv0) / max(need.max(), 1e-9), (mv0 - OP_LOW) / max(-need.min(), 1e-9))
+    high = installed_flow(OP_HIGH, mv0, sc.rangeability)
+    low = -installed_flow(OP_LOW, mv0, sc.rangeability)
+    room = min(high / max(need.max(), 1e-9), low / max(-need.min(), 1e-9))
     shrink = min(1.0, room)
     sp_mv, load = sp_mv * shrink, load * shrink
     if sc.integrating:
@@ -412,27 +355,30 @@ def simulate(scenario: Scenario) -> dict:
     else:
         sp = pv0 + sc.gain * sp_mv
         pv_load = sc.gain * load
-    err, res, frozen = _measurement(rng, sc, n, scale)
+    err, res, frozen = measurement(rng, sc, n, scale)
     sign = 1.0 if sc.gain > 0 else -1.0
-    pid = np.array([sc.Kc, sc.Kc * ts / sc.Ti, sign, mv0])
-    sens = np.array([pv0, mv0, res, float(frozen[0]), float(frozen[1])])
+    pid = _controller(sc, sign, mv0)
+    sens = np.array([pv0, mv0, res, float(frozen[0]), float(frozen[1]), sc.rangeability])
     out = _run(sc, plant, sp, np.empty(0), pv_load, err, pid, sens, mv0)
     return {'t': np.arange(n) * ts, 'op': out['op'], 'pv': out['pv'], 'sp': sp,
             'mv': out['mv']}
 
 
-def plant_response(scenario: Scenario, mv: np.ndarray, mv0: float = 50.0) -> np.ndarray:
+def plant_response(scenario: Scenario, mv: np.ndarray, mv0: float | None = None) -> np.ndarray:
     """
     Return the noise-free PV deviation of the open loop driven by ``mv`` (%).
 
-    The compiled loop's own plant path (ideal valve, no loads), for checking
-    the discretisation against a continuous-time simulation.
+    The compiled loop's own plant path (ideal valve, no loads, the scenario's
+    characteristic about ``mv0``, by default the record's operating point),
+    for checking the discretisation against a continuous-time simulation.
     """
     mv = np.ascontiguousarray(mv, dtype=np.float64)
     zeros = np.zeros(mv.shape[0])
-    sc = _replace(scenario, valve='linear')
-    pid = np.array([0.0, 0.0, 1.0, mv0])
-    sens = np.array([0.0, mv0, 0.0, -1.0, -1.0])
+    if mv0 is None:
+        mv0 = _operating_point(np.random.default_rng([scenario.seed, 1]), scenario)
+    sc = _replace(scenario, valve='linear', Kc=0.0, Ti=1.0)
+    pid = _controller(sc, 1.0, mv0)
+    sens = np.array([0.0, mv0, 0.0, -1.0, -1.0, sc.rangeability])
     return _run(sc, plant_model(sc), zeros, mv, zeros, zeros, pid, sens, mv0)['pv']
 
 
