@@ -43,6 +43,12 @@ def test_level_laws_are_odd_continuous_and_gentle_inside_the_gap(law):
     assert controller_law(gap, law, gap, inner) == pytest.approx(
         gap if law == LAW_SQUARED else inner * gap)
     assert controller_law(1.7, LAW_PI, gap, inner) == 1.7
+    # Never hotter than the PI tuned at the set point: a law that is would turn a
+    # tuned loop unstable after one upset.
+    assert np.all(np.abs(out) <= np.abs(e) + 1e-12)
+    outside = np.abs(e) > gap + 1e-9                     # the full gain beyond the gap
+    assert np.allclose(np.abs(out[outside]) - np.abs(e[outside]),
+                       -(1.0 - inner) * gap if law == LAW_GAP else 0.0)
 
 
 def test_equal_percentage_plant_gains_more_opening_than_closing():
@@ -95,3 +101,20 @@ def test_healthy_nonlinear_loops_stay_inside_ops_range():
         assert np.mean((op <= 0.0) | (op >= 100.0)) < 0.005, sc
         checked += 1
     assert checked > 20
+
+
+def test_level_laws_keep_even_aggressive_loops_off_ops_limits():
+    # Error squared without its cap slammed OP between 0 and 100 % on 7 of 19
+    # aggressively tuned level loops (review); capped, a law loop of any label
+    # or look-alike saturates no more than its linear twin.
+    checked = 0
+    for seed in range(4000, 7000):
+        sc = draw_scenario(seed)
+        if sc.law != 'squared' or sc.tuning != 'aggressive':
+            continue
+        op = simulate(sc)['op']
+        twin = simulate(dataclasses.replace(sc, law='', gap=0.0, inner=1.0))['op']
+        share, twin_share = (np.mean((x <= 0.0) | (x >= 100.0)) for x in (op, twin))
+        assert share <= twin_share + 0.02, (sc, share, twin_share)
+        checked += 1
+    assert checked >= 5

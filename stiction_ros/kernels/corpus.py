@@ -64,15 +64,17 @@ def controller_law(e: float, law: int, gap: float, inner: float) -> float:
 
     A gap controller has ``inner`` times its gain while ``|e| < gap`` and
     its full gain outside, continuous at the gap; error squared scales the
-    gain by ``|e| / gap``.  Both let a level swing in its tank (averaging
-    control), which a plain PI would hold tight.
+    gain by ``|e| / gap`` up to the full gain at the gap (as a DCS scales it
+    by the error's share of span, which never exceeds 1), so that neither law
+    is ever hotter than the PI tuned at the set point.  Both let a level
+    swing in its tank (averaging control), which a plain PI would hold tight.
     """
     if law == LAW_GAP:
         if abs(e) < gap:
             return inner * e
         return e - math.copysign((1.0 - inner) * gap, e)
     if law == LAW_SQUARED:
-        return e * abs(e) / gap
+        return e * min(abs(e) / gap, 1.0)
     return e
 
 
