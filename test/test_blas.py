@@ -32,7 +32,7 @@ print(json.dumps(code_version()))
 FIGURES = """
 import json, stiction_ros
 from stiction_ros.analysis.detection.dataset import featurize_seed
-print(json.dumps([[float(v) for v in featurize_seed(s)[1]] for s in (1, 2, 5)]))
+print(json.dumps([[float(v) for v in featurize_seed(s)[1]] for s in (2, 3, 5)]))
 """
 
 
