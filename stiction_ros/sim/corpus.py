@@ -11,14 +11,16 @@ of the healthy records carry a condition that imitates stiction
 both labels, so the label shows only through the valve and the look-alikes.
 So are two things a plant has that a linear PI loop lacks: an equal-percentage
 valve, whose loop gain grows as it opens, and on level loops a gap or
-error-squared controller, which lets the level swing.
+error-squared controller, which lets the level swing; and a cycle passed on
+from upstream, which a healthy and a sticky valve's loop alike must carry.
 
 Time constants are drawn in samples (what a historian export shows) and
 converted to seconds.  Everything follows from the seed: ``draw_scenario``
-draws from ``default_rng(seed)`` and the characteristic and controller law
-from ``default_rng([seed, 3])`` (added on 2026-11-29, so that every other draw
-stayed what it was), ``simulate`` draws the signals (loads, set point, noise,
-faults) from ``default_rng([seed, 1])``.
+draws from ``default_rng(seed)`` and the characteristic, controller law and
+upstream cycle from ``default_rng([seed, 3])`` (added on 2026-11-29, so that
+every other draw stayed what it was; the cycle is drawn last in it, for the
+same reason), ``simulate`` draws the signals (loads, set point, noise, faults)
+from ``default_rng([seed, 1])``.
 """
 
 from dataclasses import asdict, dataclass
@@ -28,7 +30,8 @@ import numpy as np
 from stiction_ros.kernels.corpus import installed_flow, LAW_GAP, LAW_PI, LAW_SQUARED, \
     loop_matrix, min_damping, QUANTISED, run_corpus_loop
 from stiction_ros.models import create
-from stiction_ros.sim.corpus_signals import loads, logu, measurement, pick, set_point
+from stiction_ros.sim.corpus_signals import loads, logu, measurement, pick, set_point, \
+    upstream_cycle
 from stiction_ros.sim.plant import TransferFunctionPlant
 
 LOOK_ALIKES = ('aggressive_tuning', 'load_cycle', 'integrating_cycle', 'backlash', 'quantised',
@@ -45,6 +48,9 @@ OP_JITTER = 2.0     # largest OP noise std (%) that the PV noise may cause
 # Shares of equal-percentage valves (all loops) and of nonlinear laws (integrating loops).
 EQUAL_PERCENTAGE = 0.3
 NONLINEAR_LAW = 0.3
+# Share of loops (both labels) that carry a cycle from upstream at a period
+# the analyzer judges (12 samples to a fifth of the record).
+UPSTREAM_CYCLE = 0.25
 LAWS = {'': LAW_PI, 'gap': LAW_GAP, 'squared': LAW_SQUARED}
 
 
@@ -79,6 +85,11 @@ class Scenario:
     law: str = ''
     gap: float = 0.0
     inner: float = 1.0
+    cycle_amplitude: float = 0.0    # % MV equivalent; 0: no upstream cycle
+    cycle_period: float = 0.0       # samples
+    cycle_phase: float = 0.0
+    cycle_shape: str = ''
+    cycle_lag: float = 1.0          # samples
 
     def to_json(self) -> dict:
         """Return the scenario as a dict of plain JSON types."""
@@ -251,12 +262,12 @@ def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
     sc = _replace(sc, Kc=float(kc), Ti=float(kc / ki * ts))
     # Nobody runs a loop whose OP jitters by more than a few % from noise alone.
     sc = _replace(sc, noise_std=float(min(noise * pv_scale(sc), OP_JITTER / kc)))
-    return _draw_plant_nonlinearity(np.random.default_rng([seed, 3]), sc)
+    return _draw_plant_extras(np.random.default_rng([seed, 3]), sc)
 
 
-def _draw_plant_nonlinearity(rng, sc):
+def _draw_plant_extras(rng, sc):
     """
-    Return ``sc`` with its valve characteristic and, on an integrating loop, its law.
+    Return ``sc`` with its characteristic, its upstream cycle and (level loops) its law.
 
     Every value is drawn whether used or not, so that each stays the same
     when another changes.  The tuning is that of the operating point, where
@@ -271,8 +282,15 @@ def _draw_plant_nonlinearity(rng, sc):
     gap, inner = size * max(pv_scale(sc), sc.noise_std), rng.uniform(0.05, 0.3)
     if not (sc.integrating and nonlinear):
         law, gap, inner = '', 0.0, 1.0
+    cycled, amplitude = rng.random() < UPSTREAM_CYCLE, logu(rng, 0.3, 3.0)
+    period, phase = logu(rng, 12.0, min(300.0, sc.samples / 5.0)), rng.uniform(0.0, 2.0 * np.pi)
+    shape, lag = pick(rng, ('sine', 'triangle', 'square'), [0.7, 0.15, 0.15]), logu(rng, 0.3, 10.0)
     return _replace(sc, rangeability=float(rangeability if equal else 1.0), law=law,
-                    gap=float(gap), inner=float(inner))
+                    gap=float(gap), inner=float(inner),
+                    cycle_amplitude=float(amplitude if cycled else 0.0),
+                    cycle_period=float(period if cycled else 0.0),
+                    cycle_phase=float(phase if cycled else 0.0),
+                    cycle_shape=shape if cycled else '', cycle_lag=float(lag if cycled else 1.0))
 
 
 def _replace(sc, **changes):
@@ -339,7 +357,7 @@ def simulate(scenario: Scenario) -> dict:
     pv0 = rng.uniform(10.0, 90.0)
     scale = pv_scale(sc)
     sp_mv = set_point(rng, sc, n)
-    load = loads(rng, sc, n)
+    load = loads(rng, sc, n) + upstream_cycle(sc, n)
     # Shrink loads and set-point moves together so that the OP they call for
     # stays inside the valve's range (a saturated loop teaches nothing); they
     # are in flow, which the characteristic gives less of as the valve closes.

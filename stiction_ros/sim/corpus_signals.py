@@ -28,18 +28,35 @@ def _filtered(x, tau_samples):
     return signal.lfilter(b, den, x, zi=signal.lfilter_zi(b, den) * x[0])[0]
 
 
+def wave(shape: str, period: float, phase: float, n: int) -> np.ndarray:
+    """Return ``n`` samples of a unit ``'sine'``, ``'square'`` or ``'triangle'`` wave."""
+    angle = 2.0 * math.pi * (np.arange(n) / period) + phase
+    if shape == 'sine':
+        return np.sin(angle)
+    if shape == 'square':
+        return np.sign(np.sin(angle))
+    return 2.0 / math.pi * np.arcsin(np.sin(angle))
+
+
 def _periodic(rng, n):
     """Return a load cycle (% MV): sine, or square or triangle as upstream on/off loops make."""
     period = logu(rng, 15.0, 3.0 * n)
-    phase = 2.0 * math.pi * (np.arange(n) / period) + rng.uniform(0.0, 2.0 * math.pi)
+    phase = rng.uniform(0.0, 2.0 * math.pi)
     shape = pick(rng, ('sine', 'square', 'triangle'), [0.6, 0.2, 0.2])
-    if shape == 'sine':
-        wave = np.sin(phase)
-    elif shape == 'square':
-        wave = np.sign(np.sin(phase))
-    else:
-        wave = 2.0 / math.pi * np.arcsin(np.sin(phase))
-    return logu(rng, 0.3, 5.0) * wave
+    return logu(rng, 0.3, 5.0) * wave(shape, period, phase, n)
+
+
+def upstream_cycle(sc, n: int) -> np.ndarray:
+    """
+    Return the record's upstream cycle (% MV, lagged), zero where it has none.
+
+    Drawn with the scenario (``Scenario.cycle_*``), for both labels alike: a
+    cycle that another loop passes on, at a period the analyzer can judge.
+    """
+    if sc.cycle_amplitude <= 0.0:
+        return np.zeros(n)
+    cycle = sc.cycle_amplitude * wave(sc.cycle_shape, sc.cycle_period, sc.cycle_phase, n)
+    return _filtered(cycle, sc.cycle_lag)
 
 
 def loads(rng, sc, n):
