@@ -19,6 +19,21 @@ def test_each_probe_is_a_function_of_its_seed_alone():
         assert a.op.min() >= 0.0 and a.op.max() <= 100.0
 
 
+def test_the_linear_twin_is_the_same_loop_with_only_the_characteristic_taken_out():
+    # Every draw the same (label, loop type, the first sample's noise), the
+    # records different: only the valve's characteristic is taken out.
+    checked = 0
+    for seed in range(40):
+        eq, lin = probes.equal_percentage(seed), probes.equal_percentage(seed, linear=True)
+        assert (eq.label, eq.integrating) == (lin.label, lin.integrating)
+        if eq.label:
+            continue
+        assert eq.pv[0] == lin.pv[0]
+        assert not np.array_equal(eq.op, lin.op)
+        checked += 1
+    assert checked >= 10
+
+
 def test_a_loop_is_cooled_only_when_its_linear_version_does_not_settle():
     t = np.arange(probes.SETTLE)
     assert probes._settles(lambda kick: kick * 0.999 ** t)

@@ -66,7 +66,7 @@ def _settles(run: Callable[[float], np.ndarray]) -> bool:
     return bool(np.max(np.abs(pv[-500:])) < 1e-2)
 
 
-def equal_percentage(seed: int) -> ProbeRecord:
+def equal_percentage(seed: int, linear: bool = False) -> ProbeRecord:
     """
     Return a loop through an equal-percentage valve, tuned from normal to hot.
 
@@ -77,6 +77,8 @@ def equal_percentage(seed: int) -> ProbeRecord:
     further open the loop gain grows, and a hot tuning cycles, bounded by the
     gain falling again as it closes: a cycle of the characteristic, not of an
     unstable loop.  Half the records carry a sticky valve (Kano) instead.
+    With ``linear`` the same loop (every draw the same) has a linear valve:
+    the control that tells what the characteristic itself does.
     """
     from stiction_ros.models import create
     rng = np.random.default_rng([seed, 11])
@@ -100,6 +102,9 @@ def equal_percentage(seed: int) -> ProbeRecord:
         valve.reset(y0=op0)
     white = rng.standard_normal(n)
     ln_r = math.log(rangeability)
+    if linear:
+        # The limit of R ** (x / 100) as R -> 1, scaled to unit slope: x itself.
+        ln_r = 0.0
     rate = gain / (50.0 * ts)
     # OP reaches the plant delay + 1 samples later, and the hold adds half a sample.
     theta = (delay + 1.5) * ts
@@ -110,7 +115,10 @@ def equal_percentage(seed: int) -> ProbeRecord:
 
     def installed(x: float) -> float:
         # Unit slope at op0, so the tuning holds there and only there.
-        return 100.0 / ln_r * (rangeability ** ((min(max(x, 0.0), 100.0) - op0) / 100.0) - 1.0)
+        x = min(max(x, 0.0), 100.0)
+        if ln_r == 0.0:
+            return x - op0
+        return 100.0 / ln_r * (rangeability ** ((x - op0) / 100.0) - 1.0)
 
     def simulate(kc: float, kick: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         # kick: the linear version (no valve, characteristic, load or noise), 1 off.
@@ -218,6 +226,8 @@ PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
      'hotter than SIMC for its gain at the operating point, then cooled until the linear '
      'loop settles there; half sticky (Kano, S 1-6 %)', equal_percentage),
+    ('equal percentage, linear twin', 'the same loops, draw for draw, with a linear valve: '
+     'what the characteristic itself changes', lambda seed: equal_percentage(seed, True)),
     ('gap level', 'a level loop whose controller has a tenth of its gain inside a gap of '
      '1-6 % (averaging level control), tuned so that the plain PI law settles; healthy',
      gap_level),
