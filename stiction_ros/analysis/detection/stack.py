@@ -2,7 +2,7 @@
 The detector's last step: the trees' score and a large network's logit, weighed together.
 
 The boosted trees read the engineered figures (and the small network's logit,
-one figure among them) and learn from 2 818 simulated records (4 500 seeds
+one figure among them) and learn from 2 843 simulated records (4 500 seeds
 less those that cannot be judged or are deadband-like), since each costs
 about 1.8 s of figures.  A network reading the trend itself costs a few
 milliseconds a record, so the same shape of network can learn from 480 000
