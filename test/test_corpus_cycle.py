@@ -30,15 +30,20 @@ def test_upstream_cycles_are_drawn_for_both_labels_alike_at_judgeable_periods():
 
 
 def test_unit_waves_have_their_period_and_unit_peak():
-    n, period = 600, 37.5
+    # 600 samples of a 37.5-sample period: exactly 16 cycles, so each shape's
+    # strongest frequency is bin 16, and each swings between -1 and 1.
+    n, period, phase = 600, 37.5, 0.3
+    k = np.arange(n)
+    np.testing.assert_allclose(wave('sine', period, phase, n),
+                               np.sin(2.0 * np.pi * k / period + phase), atol=1e-12)
     for shape in ('sine', 'triangle', 'square'):
-        w = wave(shape, period, 0.3, n)
+        w = wave(shape, period, phase, n)
         assert np.max(np.abs(w)) <= 1.0 + 1e-12
-        assert np.max(w) > 0.99
-        k = np.arange(n - 75)
-        assert np.allclose(w[k], wave(shape, period, 0.3 + 2.0 * np.pi, n)[k])
-        # Two periods on, the wave repeats (75 samples is a whole number of cycles).
-        assert np.mean(np.isclose(w[k + 75], w[k], atol=1e-9)) > 0.95
+        # (a sampled triangle misses its peak by up to half a step, 2 / 37.5)
+        assert np.max(w) > 0.94 and np.min(w) < -0.94
+        assert abs(np.mean(w)) < 0.05
+        spectrum = np.abs(np.fft.rfft(w))
+        assert int(np.argmax(spectrum[1:])) + 1 == 16, shape
 
 
 def test_a_linear_loop_answers_a_sine_with_a_sine_of_its_frequency():

@@ -49,7 +49,7 @@ OP_JITTER = 2.0     # largest OP noise std (%) that the PV noise may cause
 EQUAL_PERCENTAGE = 0.3
 NONLINEAR_LAW = 0.3
 # Share of loops (both labels) that carry a cycle from upstream at a period
-# the analyzer judges (12 samples to a fifth of the record).
+# the analyzer judges (12 samples to a fifth of the record, at most 300).
 UPSTREAM_CYCLE = 0.25
 LAWS = {'': LAW_PI, 'gap': LAW_GAP, 'squared': LAW_SQUARED}
 
