@@ -144,3 +144,28 @@ def test_a_topic_whose_schema_is_not_ros2msg_is_a_clear_error(tmp_path):
     topic = read_bag(path).topic('/reading')
     with pytest.raises(BagReadError, match="'jsonschema'.*only ros2msg"):
         topic.values()
+
+
+def test_the_summary_says_where_a_recording_left_its_offline_twin(tmp_path):
+    # A recording of the offline run itself, but for OP at one sample: the summary must say
+    # when the live run departed (the clue to why), not only by how much.
+    from stiction_ros.sim.closed_loop import simulate_loop
+    from stiction_ros.sim.ros_params import PHASES
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'undershoot')
+    off = simulate_loop(cfg, duration=60.0)
+    op = off['op'][:61].copy()
+    op[37] += 0.066
+    w = BagWriter(tmp_path / 'bag', chunk_size=2048)
+    for name in ('/op', '/mv'):
+        w.add_topic(name, 'std_msgs/msg/Float64', [qos_profile(depth=100)], 'RIHS01_' + '0' * 64)
+    for k in range(61):
+        for name, value in (('/op', op[k]), ('/mv', off['mv'][k])):
+            phase = PHASES['controller' if name == '/op' else 'valve']
+            w.write(name, f64(float(value)), int(round((k + phase) * 1e9)))
+    w.close()
+    s = summarise(read_bag(tmp_path / 'bag'), cfg)
+    assert s['signals']['mv']['first_difference_s'] is None
+    assert s['signals']['mv']['max_abs_difference'] == 0.0
+    assert s['signals']['op']['first_difference_s'] == 37.0
+    assert abs(s['signals']['op']['max_abs_difference'] - 0.066) < 1e-12
+    assert 'first difference from the offline run: op at 37 s' in format_summary(s)

@@ -8,6 +8,7 @@ loop node) and both stalled: neither finished its 300 s in 100 wall seconds
 (6 s alone).  Here each loop must equal its offline twin to the bit.
 """
 
+import re
 import threading
 import time
 
@@ -80,15 +81,25 @@ def check_loops(prefix, cases, duration, tmp_path, probe):
     results = {}
     for case in cases:
         ns = f'/{prefix}_{case}'
-        back = {p.stem: p.read_text(errors='replace').count('clock went back')
+        logs = {p.stem: p.read_text(errors='replace')
                 for p in sorted((tmp_path / case / 'logs').glob('*.log'))}
+        back = {name: text.count('clock went back') for name, text in logs.items()}
         r = results[ns] = {'error': repr(errors[ns]), 'clock_went_back': back}
+        # What a loop that left its twin did differently, for the failure message: a node
+        # that gave up waiting for an input (acting on a held one), a clock that moved on.
+        gave_up = {name: sum(map(int, re.findall(r'gave up at (\d+)', text)))
+                   for name, text in logs.items()}
+        r['gave_up'] = {name: count for name, count in gave_up.items() if count}
+        clock_log = logs.get('sim_clock', '')
+        r['stalls'] = sum(map(int, re.findall(r'(\d+) stalls$', clock_log, re.M)))
         bag = tmp_path / case / 'bag'
         if (bag / 'metadata.yaml').exists():    # a loop stopped by the watchdog has one too
             s = summarise(read_bag(bag), load_loop(config_file('concentration_loop.yaml'), case))
             r['messages'] = s['messages']
             r['diff'] = {k: s['signals'][k].get('max_abs_difference')
                          for k in ('op', 'mv', 'pv') if k in s['signals']}
+            r['first_difference_s'] = {k: s['signals'][k].get('first_difference_s')
+                                       for k in ('op', 'mv', 'pv') if k in s['signals']}
     print(results, clocks)
     # Each loop had its own clock topic, one publisher each, and none used /clock.
     assert clocks == {'/clock': 0, **{f'/{prefix}_{c}/clock': 1 for c in cases}}, clocks

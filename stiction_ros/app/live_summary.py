@@ -71,7 +71,12 @@ def summarise(bag, cfg):
             ref = offline[name][kk]
             off = measure_oscillation(offline[name][first:last + 1], ts)
             entry['offline'] = _osc(off)
-            entry['max_abs_difference'] = float(np.max(np.abs(vv - ref))) if len(vv) else None
+            diff = np.abs(vv - ref)
+            entry['max_abs_difference'] = float(np.max(diff)) if len(vv) else None
+            # Where the live run left its twin: the first sample is the clue to why (a node
+            # that acted on a held input there, a message put on the wrong sample).
+            off_at = np.flatnonzero(diff > 0)
+            entry['first_difference_s'] = float(kk[off_at[0]] * ts) if len(off_at) else None
             if live.oscillating and off.oscillating:
                 entry['period_error'] = live.period / off.period - 1.0
                 entry['amplitude_error'] = live.amplitude / off.amplitude - 1.0
@@ -104,6 +109,10 @@ def format_summary(s):
             f'{_num(lv["amplitude"]):>9} {_num(of.get("amplitude")):>8} '
             f'{_pct(e.get("amplitude_error")):>7} '
             f'{_num(e.get("max_abs_difference"), 4):>10} {e["gaps"]}')
+    departed = [f'{name} at {e["first_difference_s"]:g} s' for name, e in s['signals'].items()
+                if e.get('first_difference_s') is not None]
+    if departed:
+        lines.append(f'first difference from the offline run: {", ".join(departed)}')
     for w in s['warnings']:
         lines.append(f'warning: {w}')
     return '\n'.join(lines)
