@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy robustness probes detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy robustness probes shared-cycles detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -65,6 +65,12 @@ robustness: venv
 # (docs/PROBES.md; about 10 min on 2 cores).
 probes: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.probes --markdown docs/PROBES.md --json docs/probes.json
+
+# A sticky loop's cycle carried into a healthy loop: does the batch analyzer's shared-cycle
+# view name the sticky one?  docs/SHARED_CYCLES.md, about 8 min on 2 cores.
+shared-cycles: venv
+	$(PINNED) $(PY) -m stiction_ros.cli.shared_cycles --markdown docs/SHARED_CYCLES.md \
+	  --json docs/shared_cycles.json --figure docs/figures/shared_cycles.png
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
 # stiction_ros/resources/stiction_detector.npz.  About 27 min on 2 cores from scratch

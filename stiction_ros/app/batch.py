@@ -11,7 +11,8 @@ recording that fails is one row with its error, never the end of the audit.
 from __future__ import annotations
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from datetime import datetime
 import glob
 import hashlib
 from pathlib import Path
@@ -19,6 +20,8 @@ import re
 import time
 
 from stiction_ros._threads import one_blas_thread
+from stiction_ros.analysis.oscillation import period_sanity
+from stiction_ros.analysis.plantwide import CycleMember, PlantWide, shared_cycles
 from stiction_ros.analysis.readers.sniff import AS_CSV
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
@@ -159,6 +162,9 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
                    summary=summary_line(report))
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']
+        cycle = cycle_of(report)
+        if cycle is not None:
+            row['cycle'] = cycle
         if out_dir is not None:
             target = Path(out_dir) / (name or report_name(path, root))
             try:
@@ -171,6 +177,46 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
                 row['report'] = str(target)
     row['seconds'] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def cycle_of(report: dict) -> dict | None:
+    """
+    Return the record's resolvable cycle for the shared-cycle view, or None.
+
+    ``period_s``, and ``start``/``end`` of the stretch read, in POSIX seconds
+    when the record has a clock time (None otherwise).
+    """
+    osc = (report.get('stiction') or {}).get('oscillation') or {}
+    period = osc.get('period_s')
+    ts, n = report.get('sample_time'), report.get('samples')
+    if not osc.get('oscillating') or not period or not ts or not n:
+        return None
+    if period_sanity(period, ts, n):
+        return None
+    start = end = None
+    if report.get('start_time'):
+        try:
+            t0 = datetime.fromisoformat(report['start_time']).timestamp()
+        except (TypeError, ValueError):
+            t0 = None
+        if t0 is not None:
+            window = report.get('signature_window') or {}
+            start = t0 + float(window.get('start_s', 0.0))
+            end = t0 + float(window.get('end_s', (n - 1) * ts))
+    return {'period_s': float(period), 'start': start, 'end': end}
+
+
+def plant_wide(rows: list[dict]) -> PlantWide:
+    """Return the cycles the recordings of ``rows`` share, and note each member's row."""
+    members = [CycleMember(r['input'], r['cycle']['period_s'], r.get('probability'),
+                           r['cycle'].get('start'), r['cycle'].get('end'))
+               for r in rows if r.get('ok') and r.get('cycle')]
+    shared = shared_cycles(members)
+    for r in rows:
+        group = shared.group_of(r['input'])
+        if group is not None:
+            r['shared_cycle'] = group.note_for(r['input'])
+    return shared
 
 
 def _analyze_named(path, name, options, out_dir, root):
@@ -252,6 +298,7 @@ class Batch:
     rows: list[dict]
     seconds: float
     workers: str
+    shared: PlantWide = field(default_factory=PlantWide)
 
     @property
     def failed(self) -> int:
@@ -286,7 +333,8 @@ class Batch:
         """Return the batch report (``--json``): counts, time, workers and every row."""
         return {'input': self.source, 'recordings': len(self.rows), 'failed': self.failed,
                 'skipped': self.skipped,
-                'seconds': round(self.seconds, 3), 'workers': self.workers, 'rows': self.rows}
+                'seconds': round(self.seconds, 3), 'workers': self.workers,
+                'shared_cycles': self.shared.to_json(), 'rows': self.rows}
 
 
 def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | None = None,
@@ -323,4 +371,4 @@ def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | Non
     (say or print_nothing)(f'{len(paths)} recordings from {options.input} on {where}')
     root = options.input if Path(options.input).is_dir() else '.'
     rows, seconds = run_batch(paths, options, jobs, scheduler, out_dir, root, say)
-    return Batch(options.input, rows, seconds, where)
+    return Batch(options.input, rows, seconds, where, plant_wide(rows))

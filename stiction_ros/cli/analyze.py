@@ -163,11 +163,28 @@ def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOption
         Path(out_dir) / report_name(source, source.parent)))
 
 
+def shared_cycle_lines(batch: Batch) -> list[str]:
+    """Return a line per cycle that several recordings share, its likely source named."""
+    from pathlib import Path
+    out = []
+    for g in batch.shared.groups:
+        names = ', '.join(
+            f'{Path(m.name).name} ('
+            + ('-' if m.probability is None else f'{m.probability:.2f}')
+            + (', likely source' if m.name == g.source else '') + ')' for m in g.members)
+        clock = '' if g.clock else '; no clock times: taken as recorded together'
+        source = '' if g.source else f'; source cannot be told: {g.reason}'
+        out.append(f'shared cycle of {g.period_s:.0f} s: {names}{source}{clock}')
+    return out
+
+
 def print_many(batch: Batch) -> int:
     """Print a line per recording and the tally; return the exit status."""
     from stiction_ros.app.report_text import batch_row_text, VERDICT_WORDS
     for row in batch.rows:
         print(batch_row_text(row))
+    for line in shared_cycle_lines(batch):
+        print(line)
     failed, where = batch.failed, batch.workers
     rows, seconds = batch.rows, batch.seconds
     why = ', '.join(f'{n} {w}' for w, n in sorted(batch.why_not().items()))

@@ -338,9 +338,13 @@ def _run(sc, plant, sp, op_open, pv_load, err, pid, sens, mv0):
     return out
 
 
-def simulate(scenario: Scenario) -> dict:
+def simulate(scenario: Scenario, load: np.ndarray | None = None) -> dict:
     """
     Simulate the closed loop of ``scenario``.
+
+    ``load``: another load, in % MV as the scenario's own and at least
+    ``scenario.samples`` long, added to them (another loop's cycle coming
+    through a vessel: ``sim.coupled_loops``); None adds nothing.
 
     Returns
     -------
@@ -352,12 +356,20 @@ def simulate(scenario: Scenario) -> dict:
     sc = scenario
     rng = np.random.default_rng([sc.seed, 1])
     n, ts = sc.samples, sc.sample_time
+    load_in = None
+    if load is not None:
+        load_in = np.asarray(load, dtype=np.float64)
+        if load_in.ndim != 1 or len(load_in) < n or not np.all(np.isfinite(load_in[:n])):
+            raise ValueError(f'load must be {n} finite values or more, not {load_in.shape}')
+        load_in = load_in[:n]
     plant = plant_model(sc)
     mv0 = _operating_point(rng, sc)
     pv0 = rng.uniform(10.0, 90.0)
     scale = pv_scale(sc)
     sp_mv = set_point(rng, sc, n)
     load = loads(rng, sc, n) + upstream_cycle(sc, n)
+    if load_in is not None:
+        load = load + load_in
     # Shrink loads and set-point moves together so that the OP they call for
     # stays inside the valve's range (a saturated loop teaches nothing); they
     # are in flow, which the characteristic gives less of as the valve closes.

@@ -46,3 +46,35 @@ def mv_op_figure(op, mv, title, path, op_label='OP (%)', mv_label='MV (%)'):
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     return path
+
+
+def shared_cycles_figure(rows, gap, path):
+    """
+    Save the two loops' stiction probabilities of every pair (``study.shared_cycles``).
+
+    Pairs that share a cycle are coloured by the source the view named; the
+    band of width ``gap`` about the diagonal is where it names none.
+    """
+    fig = Figure(figsize=(5.5, 5))
+    a = fig.subplots()
+    colour = {'up': 'tab:green', 'down': 'tab:red', '': 'tab:orange'}
+    word = {'up': 'shared: sticky loop named', 'down': 'shared: healthy loop named',
+            '': 'shared: source not told'}
+    alone = [r for r in rows if r['source'] == 'none' and None not in (r['up_p'], r['down_p'])]
+    a.scatter([r['down_p'] for r in alone], [r['up_p'] for r in alone], s=8, color='0.75',
+              label='no shared cycle')
+    for key in ('up', 'down', ''):
+        got = [r for r in rows if r['source'] == key]
+        if got:
+            a.scatter([r['down_p'] for r in got], [r['up_p'] for r in got], s=22,
+                      color=colour[key], label=f'{word[key]} ({len(got)})')
+    a.fill_between([0, 1], [-gap, 1 - gap], [gap, 1 + gap], color='0.9', zorder=0)
+    a.set_xlim(-0.02, 1.02)
+    a.set_ylim(-0.02, 1.02)
+    a.set_xlabel('healthy loop carrying the cycle: stiction probability')
+    a.set_ylabel('sticky loop: stiction probability')
+    a.legend(fontsize=7, loc='lower right')
+    a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
