@@ -73,7 +73,7 @@ shared-cycles: venv
 	  --json docs/shared_cycles.json --figure docs/figures/shared_cycles.png
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
-# stiction_ros/resources/stiction_detector.npz.  About 27 min on 2 cores from scratch
+# stiction_ros/resources/stiction_detector.npz.  About 33 min on 2 cores from scratch
 # (the figures of 7 500 simulated records, the slip footprints of their sticky records and
 # the large network's logits of both sets), 1-2 min once out/detector_cache holds them.
 detector: venv
