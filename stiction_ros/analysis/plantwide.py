@@ -1,27 +1,35 @@
 """
-Cycles shared between loops: which loop is the likely source, which only carry it.
+Cycles at one period in several loops: which loop is the likely source, which only carry it.
 
 A sticky valve's cycle travels: through a vessel into the next unit, whose
 loop cycles at the same period with a good valve.  Read alone, that loop
 looks sticky too (DETECTION.md, section 5: healthy loops with an upstream
-cycle are the detector's most frequent false alarm).  Read together, the
-loops that cycle at one period over the same hours share one oscillation
-(Thornhill, Huang and Zhang 2003 group them by period the same way), and
-the source is the loop whose own valve explains it best.
+cycle are the detector's most frequent false alarm on simulated loops).
+Read together, loops that cycle at one period over the same hours may share
+one oscillation (Thornhill, Huang and Zhang 2003 group loops by period the
+same way), and then the source is the loop whose own valve explains it.
+Nothing here checks that the loops are coupled (their cross-correlation):
+one period over the same hours is the evidence, and the notes say "cycles
+at the period of", not "carries", unless a source stands out.
 
-Thornhill et al. (2003) point to the most *distorted* cycle (a plant
-filters the harmonics away as the cycle travels).  In closed loop that does
-not hold: the carrier's controller removes the fundamental and leaves the
-harmonics, and on a first draft of the pairs of ``sim.coupled_loops``
-(seeds 6100040-6100339) the cycle with more harmonics was the source's 12
-times in 25, a coin, while the learned detector's probability, which reads
-the valve path (OP against PV), picked it 19 times in 19.  So the source is
-the member whose probability stands ``GAP`` above every other's; where none
-does, which loop started the cycle cannot be told from these records, and
-the result says so.  On the development pairs (seeds 6100000-6100339) the
-rule named the sticky loop in 20 of 22 shared cycles and none the healthy
-one; ``make shared-cycles`` scores it on pairs it was not set on
-(docs/SHARED_CYCLES.md).
+Thornhill (2005, Finding the source of nonlinearity in a process with
+plant-wide oscillation, IEEE Trans. Control Systems Technology 13(3))
+points to the most non-linear, most distorted cycle, since the plant
+filters harmonics away as a cycle travels.  On the simulated pairs of
+``sim.coupled_loops`` the carrier's controller takes out the fundamental
+and leaves the harmonics, and the more distorted PV was the source's about
+as often as not (``make shared-cycles`` counts it), while the learned
+detector's probability, which reads the valve path (OP against PV), picked
+the source far more often.  So the source is a member whose probability is
+at least ``FLOOR`` (it reads sticky on its own) and stands ``GAP`` above
+every other member's; where none does, which loop started the cycle cannot
+be told from these records, and the result says so.  A member that also
+reads sticky on its own is never called a carrier: two sticky valves at
+one period are ordinary in a plant.
+
+A cycle that the carrier's controller distorts can show its autocorrelation
+period at half the source's (the second harmonic); such loops are not
+grouped here.
 
 Pure numpy: the batch analyzer (``app.batch``) builds the members from its
 rows; a member is a loop with a resolvable oscillation.
@@ -32,11 +40,15 @@ import math
 
 import numpy as np
 
-# Periods within this relative distance of a group's are the same oscillation: the ACF
-# period of one record wanders a few per cent (Thornhill et al. use a similar band).
+# Periods within this relative distance of each other are one oscillation: the ACF period
+# of one record wanders a few per cent.
 TOLERANCE = 0.15
-# How far the source's probability must stand above every other member's.
+# How far the source's probability must stand above every other member's, and how high
+# it must be itself (a source whose own reading says "probably not sticky" is no source).
 GAP = 0.2
+FLOOR = 0.5
+# The least common stretch of two records, in periods, for their cycles to be compared.
+MIN_OVERLAP_PERIODS = 4.0
 
 
 @dataclass(frozen=True)
@@ -44,9 +56,11 @@ class CycleMember:
     """
     One loop's cycle as the batch read it.
 
-    ``start`` and ``end`` are clock times in seconds (POSIX), or None when the
-    record has no clock time; ``probability`` is the detector's (None when it
-    gave none).
+    ``start`` and ``end`` are clock times in seconds of the stretch read, on
+    the time base ``clock`` (members on different bases are never compared;
+    all without a clock time are taken as recorded together).
+    ``probability`` is the detector's, None when it gave none (a record whose
+    valve position was measured is judged by its fits).
     """
 
     name: str
@@ -54,6 +68,13 @@ class CycleMember:
     probability: float | None = None
     start: float | None = None
     end: float | None = None
+    clock: str | None = None
+
+    @property
+    def p(self) -> float | None:
+        """Return the probability, None when missing or not a number."""
+        p = self.probability
+        return float(p) if p is not None and math.isfinite(p) else None
 
 
 @dataclass
@@ -71,18 +92,26 @@ class SharedCycle:
         return {'period_s': round(self.period_s, 3), 'source': self.source,
                 'reason': self.reason, 'clock_times': self.clock,
                 'members': [{'name': m.name, 'period_s': round(m.period_s, 3),
-                             'probability': m.probability} for m in self.members]}
+                             'probability': m.p} for m in self.members]}
 
     def note_for(self, name: str) -> str:
-        """Return one line for member ``name``: what the shared cycle says about it."""
+        """Return one line for member ``name``: what the shared period says about it."""
+        me = next(m for m in self.members if m.name == name)
         others = ', '.join(m.name for m in self.members if m.name != name)
-        head = f'cycle of {self.period_s:.0f} s shared with {others}'
-        if self.source is None:
-            return f'{head}; which loop is its source cannot be told ({self.reason})'
+        head = f'cycles at the period of {others} ({self.period_s:.0f} s)'
+        sticky = me.p is not None and me.p >= FLOOR
         if self.source == name:
             return f'{head}; this loop is the likely source ({self.reason})'
-        return (f'{head}; likely carried from {self.source}, whose valve explains it '
-                f'better ({self.reason})')
+        if me.p is None:
+            return f'{head}; not compared: this record has no stiction probability'
+        if self.source is None:
+            alone = f'; reads sticky on its own ({me.p:.2f})' if sticky else ''
+            return f'{head}{alone}; which loop is the source cannot be told ({self.reason})'
+        if sticky:
+            return (f'{head}; reads sticky on its own as well ({me.p:.2f}): it may be a '
+                    f'second source beside {self.source}')
+        return (f'{head}; likely carried from {self.source}, whose valve explains the '
+                f'cycle better ({self.reason})')
 
 
 @dataclass
@@ -101,28 +130,33 @@ class PlantWide:
         return [g.to_json() for g in self.groups]
 
 
-def _overlap(a: CycleMember, b: CycleMember) -> bool:
+def _together_in_time(a: CycleMember, b: CycleMember, period_s: float) -> bool:
     if a.start is None or b.start is None:
         return a.start is None and b.start is None
-    return min(a.end or a.start, b.end or b.start) > max(a.start, b.start)
+    if a.clock != b.clock:
+        return False
+    end_a = a.end if a.end is not None else math.inf
+    end_b = b.end if b.end is not None else math.inf
+    return min(end_a, end_b) - max(a.start, b.start) >= MIN_OVERLAP_PERIODS * period_s
 
 
-def _together(group: list[CycleMember], m: CycleMember, tolerance: float) -> bool:
-    ref = float(np.median([g.period_s for g in group]))
-    same = abs(math.log(m.period_s / ref)) <= math.log1p(tolerance)
-    return same and any(_overlap(g, m) for g in group)
+def _fits(group: list[CycleMember], m: CycleMember, tolerance: float) -> bool:
+    # Complete linkage: within the tolerance of, and recorded with, every member.
+    periods = [g.period_s for g in group] + [m.period_s]
+    if max(periods) / min(periods) > 1.0 + tolerance:
+        return False
+    return all(_together_in_time(g, m, max(g.period_s, m.period_s)) for g in group)
 
 
 def _source(members: list[CycleMember], gap: float) -> tuple[str | None, str]:
-    known = sorted((m for m in members if m.probability is not None),
-                   key=lambda m: -float(m.probability or 0.0))
-    if not known:
-        return None, 'no member has a stiction probability'
-    best = known[0]
-    if len(known) == 1:
-        return None, f'only {best.name} has a stiction probability'
-    second = known[1]
-    p1, p2 = float(best.probability or 0.0), float(second.probability or 0.0)
+    known = sorted((m for m in members if m.p is not None), key=lambda m: -(m.p or 0.0))
+    if len(known) < 2:
+        return None, ('fewer than two members have a stiction probability'
+                      if len(members) > 1 else 'one member')
+    best, second = known[0], known[1]
+    p1, p2 = best.p or 0.0, second.p or 0.0
+    if p1 < FLOOR:
+        return None, f'no member reads sticky on its own (the highest, {best.name}, {p1:.2f})'
     if p1 - p2 < gap:
         return None, (f'stiction probabilities {p1:.2f} ({best.name}) and {p2:.2f} '
                       f'({second.name}) are within {gap:g}')
@@ -137,9 +171,10 @@ def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
     Parameters
     ----------
     members : list of CycleMember
-        Loops with a resolvable oscillation (period in seconds, > 0).
+        Loops with a resolvable oscillation (period in seconds, > 0), with
+        distinct names.
     tolerance : float
-        Relative distance of periods that count as one oscillation.
+        How far apart (relative) the periods of one group may be, all pairs.
     gap : float
         How far the source's stiction probability must stand above every
         other member's; else the group's source is None, with the reason.
@@ -147,15 +182,19 @@ def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
     Returns
     -------
     PlantWide
-        The groups of two loops or more, in the order of their shortest period.
+        The groups of two loops or more, in the order of their shortest
+        period; the same whatever the order of ``members``.
 
     """
     bad = [m.name for m in members if not (m.period_s > 0 and math.isfinite(m.period_s))]
     if bad:
         raise ValueError(f'period must be a positive number of seconds: {bad}')
+    names = [m.name for m in members]
+    if len(set(names)) != len(names):
+        raise ValueError('member names must be distinct')
     groups: list[list[CycleMember]] = []
-    for m in sorted(members, key=lambda m: m.period_s):
-        home = next((g for g in groups if _together(g, m, tolerance)), None)
+    for m in sorted(members, key=lambda m: (m.period_s, m.name)):
+        home = next((g for g in groups if _fits(g, m, tolerance)), None)
         if home is None:
             groups.append([m])
         else:
@@ -165,7 +204,7 @@ def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
         if len(g) < 2:
             continue
         source, reason = _source(g, gap)
-        ordered = sorted(g, key=lambda m: 1.0 if m.probability is None else -m.probability)
+        ordered = sorted(g, key=lambda m: (1.0 if m.p is None else -m.p, m.name))
         out.append(SharedCycle(float(np.median([m.period_s for m in g])), ordered, source,
                                reason, clock=any(m.start is not None for m in g)))
     return PlantWide(out, len(members))

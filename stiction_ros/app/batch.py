@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
-from datetime import datetime
+from datetime import datetime, timezone
 import glob
 import hashlib
 from pathlib import Path
@@ -183,33 +183,40 @@ def cycle_of(report: dict) -> dict | None:
     """
     Return the record's resolvable cycle for the shared-cycle view, or None.
 
-    ``period_s``, and ``start``/``end`` of the stretch read, in POSIX seconds
-    when the record has a clock time (None otherwise).
+    ``period_s``; ``start``/``end`` of the stretch the signatures read, in
+    seconds on the time base ``clock``: ``UTC`` for a clock time with a zone
+    (a bag, Unix seconds), ``no zone`` for one without (a historian export,
+    read as written, so that two such exports of one plant compare); all
+    None when the record has no clock time.
     """
     osc = (report.get('stiction') or {}).get('oscillation') or {}
     period = osc.get('period_s')
-    ts, n = report.get('sample_time'), report.get('samples')
+    ts = report.get('sample_time')
+    window = report.get('signature_window') or {}
+    n = window.get('samples') or report.get('samples')
     if not osc.get('oscillating') or not period or not ts or not n:
         return None
     if period_sanity(period, ts, n):
         return None
-    start = end = None
+    start = end = clock = None
     if report.get('start_time'):
         try:
-            t0 = datetime.fromisoformat(report['start_time']).timestamp()
+            t0 = datetime.fromisoformat(report['start_time'])
         except (TypeError, ValueError):
             t0 = None
         if t0 is not None:
-            window = report.get('signature_window') or {}
-            start = t0 + float(window.get('start_s', 0.0))
-            end = t0 + float(window.get('end_s', (n - 1) * ts))
-    return {'period_s': float(period), 'start': start, 'end': end}
+            clock = 'no zone' if t0.tzinfo is None else 'UTC'
+            base = t0.replace(tzinfo=timezone.utc) if t0.tzinfo is None else t0
+            start = base.timestamp() + float(window.get('start_s', 0.0))
+            end = base.timestamp() + float(window.get('end_s', (n - 1) * ts))
+    return {'period_s': float(period), 'start': start, 'end': end, 'clock': clock}
 
 
 def plant_wide(rows: list[dict]) -> PlantWide:
     """Return the cycles the recordings of ``rows`` share, and note each member's row."""
     members = [CycleMember(r['input'], r['cycle']['period_s'], r.get('probability'),
-                           r['cycle'].get('start'), r['cycle'].get('end'))
+                           r['cycle'].get('start'), r['cycle'].get('end'),
+                           r['cycle'].get('clock'))
                for r in rows if r.get('ok') and r.get('cycle')]
     shared = shared_cycles(members)
     for r in rows:

@@ -164,17 +164,17 @@ def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOption
 
 
 def shared_cycle_lines(batch: Batch) -> list[str]:
-    """Return a line per cycle that several recordings share, its likely source named."""
-    from pathlib import Path
+    """Return a line per period that several recordings cycle at, its likely source named."""
     out = []
     for g in batch.shared.groups:
+        # The paths as given: two level.csv of different units must not read as one.
         names = ', '.join(
-            f'{Path(m.name).name} ('
-            + ('-' if m.probability is None else f'{m.probability:.2f}')
+            f'{m.name} (' + ('-' if m.p is None else f'{m.p:.2f}')
             + (', likely source' if m.name == g.source else '') + ')' for m in g.members)
         clock = '' if g.clock else '; no clock times: taken as recorded together'
         source = '' if g.source else f'; source cannot be told: {g.reason}'
-        out.append(f'shared cycle of {g.period_s:.0f} s: {names}{source}{clock}')
+        out.append(f'cycle of {g.period_s:.0f} s in {len(g.members)} loops: {names}'
+                   f'{source}{clock}')
     return out
 
 

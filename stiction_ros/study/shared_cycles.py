@@ -17,7 +17,8 @@ import numpy as np
 
 from stiction_ros._threads import pool_map
 from stiction_ros.analysis.detection.detect import detect
-from stiction_ros.analysis.plantwide import CycleMember, GAP, shared_cycles, TOLERANCE
+from stiction_ros.analysis.oscillation import detrend, fundamental_amplitude
+from stiction_ros.analysis.plantwide import CycleMember, FLOOR, GAP, shared_cycles, TOLERANCE
 from stiction_ros.sim.coupled_loops import coupled_pair
 
 
@@ -32,6 +33,19 @@ class PairRow:
     down_period: float | None
     source: str = ''            # 'up', 'down', '' (not told) or 'none' (no shared cycle)
     reason: str = ''
+    # How distorted each PV's cycle is (harmonics 2-5 over the fundamental), the source
+    # pointer of Thornhill (2005), for comparison; None without a resolvable cycle.
+    up_harmonics: float | None = None
+    down_harmonics: float | None = None
+
+
+def harmonics(x: np.ndarray, period_samples: float) -> float:
+    """Return the RMS of harmonics 2-5 of a cycle over its fundamental (least squares)."""
+    x = detrend(x)
+    first = fundamental_amplitude(x, period_samples)
+    more = [fundamental_amplitude(x, period_samples / k) for k in range(2, 6)
+            if period_samples / k >= 2.5]
+    return float(np.sqrt(np.sum(np.square(more))) / max(first, 1e-300))
 
 
 def _read(rec: dict, sc) -> tuple[float | None, float | None]:
@@ -51,6 +65,9 @@ def pair_row(seed: int) -> PairRow:
     row = PairRow(seed, up_p, down_p, up_period, down_period, source='none')
     if up_period is None or down_period is None:
         return row
+    ts = pair.upstream.sample_time
+    row.up_harmonics = harmonics(pair.up['pv'], up_period / ts)
+    row.down_harmonics = harmonics(pair.down['pv'], down_period / ts)
     # Both records cover the same hours: no clock time, taken as recorded together.
     shared = shared_cycles([CycleMember('up', up_period, up_p),
                             CycleMember('down', down_period, down_p)])
@@ -74,24 +91,31 @@ class SharedCycleStudy:
         both = [r for r in rows if r.up_period is not None and r.down_period is not None]
         grouped = [r for r in both if r.source != 'none']
         flagged = [r for r in grouped if r.down_p is not None and r.down_p >= 0.5]
-        alone = [r for r in rows if r.source == 'none' and r.down_p is not None]
+        # The healthy loops with a resolvable cycle of their own that was not shared: the
+        # baseline for how often a cycle alone gets a healthy loop flagged.
+        unshared = [r for r in rows if r.source == 'none' and r.down_period is not None
+                    and r.down_p is not None]
         return {
             'pairs': len(rows), 'both_cycle': len(both), 'shared': len(grouped),
             'source_up': sum(r.source == 'up' for r in grouped),
             'source_down': sum(r.source == 'down' for r in grouped),
             'source_not_told': sum(r.source == '' for r in grouped),
+            'harmonics_point_up': sum((r.up_harmonics or 0.0) > (r.down_harmonics or 0.0)
+                                      for r in grouped),
             'carrier_flagged': len(flagged),
             'carrier_flagged_named_carried': sum(r.source == 'up' for r in flagged),
-            'up_found': sum(r.up_p is not None and r.up_p >= 0.5 for r in rows),
-            'up_judged': sum(r.up_p is not None for r in rows),
-            'down_flagged_elsewhere': sum(r.down_p >= 0.5 for r in alone
+            'carrier_flagged_named_source': sum(r.source == 'down' for r in flagged),
+            'carrier_flagged_not_told': sum(r.source == '' for r in flagged),
+            'unshared_cycle_flagged': sum(r.down_p >= 0.5 for r in unshared
                                           if r.down_p is not None),
-            'down_judged_elsewhere': len(alone)}
+            'unshared_cycle': len(unshared),
+            'up_found': sum(r.up_p is not None and r.up_p >= 0.5 for r in rows),
+            'up_judged': sum(r.up_p is not None for r in rows)}
 
     def to_json(self) -> dict:
         """Return plain JSON types."""
         return {'seeds': list(self.seeds), 'seconds': round(self.seconds, 1),
-                'tolerance': TOLERANCE, 'gap': GAP, 'tally': self.tally(),
+                'tolerance': TOLERANCE, 'gap': GAP, 'floor': FLOOR, 'tally': self.tally(),
                 'rows': [asdict(r) for r in self.rows]}
 
 
