@@ -252,7 +252,8 @@ def run_group(tmp_path, probe, ns, stop, tty=False):
             warnings.warn(f'{ns}: a teardown stalled ({where}):\n{text}', stacklevel=1)
     # The recorder's own account (messages lost on the way, by sequence number) says
     # whether a message missing from the bag was lost in DDS or at the stop.
-    said = ' '.join(line for line in logs.splitlines() if line.startswith('recorder:'))
+    said = ' '.join(line.strip() for line in logs.splitlines()
+                    if line.strip().startswith('recorder:'))
     report = check_complete(read_three_ways(bag), sent, ns, stop_ns, said)
     print(f'{ns}: stopped in {stopped_in:.2f} s, exit codes {codes}, {report}')
     return report
@@ -321,7 +322,8 @@ def test_loop_interrupted_twice_stops_every_node_and_finishes_the_bag(
     assert not left, left
     recorder_log = (logs / 'recorder.log').read_text()
     assert 'recorder: wrote' in recorder_log, recorder_log
-    said = ' '.join(line for line in recorder_log.splitlines() if line.startswith('recorder:'))
+    said = ' '.join(line.strip() for line in recorder_log.splitlines()
+                    if line.strip().startswith('recorder:'))
     report = check_complete(read_three_ways(bag), sent, ns, stop_ns, said)
     print(f'{ns}: exit code {exit_code}, {report}')
 

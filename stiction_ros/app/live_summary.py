@@ -109,13 +109,18 @@ def format_summary(s):
             f'{_num(lv["amplitude"]):>9} {_num(of.get("amplitude")):>8} '
             f'{_pct(e.get("amplitude_error")):>7} '
             f'{_num(e.get("max_abs_difference"), 4):>10} {e["gaps"]}')
-    departed = [f'{name} at {e["first_difference_s"]:g} s' for name, e in s['signals'].items()
-                if e.get('first_difference_s') is not None]
+    departed = [f'{name} at {_seconds(e["first_difference_s"])} s'
+                for name, e in s['signals'].items() if e.get('first_difference_s') is not None]
     if departed:
         lines.append(f'first difference from the offline run: {", ".join(departed)}')
     for w in s['warnings']:
         lines.append(f'warning: {w}')
     return '\n'.join(lines)
+
+
+def _seconds(x):
+    # 37, 0.05 or 1234567: never 1.23457e+06 for a long run.
+    return f'{x:.3f}'.rstrip('0').rstrip('.')
 
 
 def _pct(x):

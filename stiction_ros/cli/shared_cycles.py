@@ -68,9 +68,10 @@ def markdown(study: dict) -> str:
         f"{t['harmonics_point_up']} |",
         '| healthy loop of a shared cycle flagged alone (probability >= 0.5) | '
         f"{t['carrier_flagged']} |",
-        "| ... of those, named as carrying the sticky loop's cycle | "
-        f"{t['carrier_flagged_named_carried']} |",
-        f"| ... named as the source | {t['carrier_flagged_named_source']} |",
+        '| ... of those, the sticky loop named the source (their note: "may be a second '
+        'source beside" it) | '
+        f"{t['carrier_flagged_source_up']} |",
+        f"| ... the healthy loop itself named the source | {t['carrier_flagged_source_down']} |",
         f"| ... source not told | {t['carrier_flagged_not_told']} |",
         '',
         f"![Both loops' stiction probabilities, per pair]({study['figure']})",
@@ -112,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     out = {**study.to_json(), 'run': run_stamp(args.jobs), 'figure': figure, 'rule': RULE}
     try:
         os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
-        shared_cycles_figure(out['rows'], out['gap'], args.figure)
+        shared_cycles_figure(out['rows'], out['gap'], out['floor'], args.figure)
         write_study(out, args.json, args.markdown, markdown)
     except OSError as err:
         print(f'stiction-shared-cycles: error: cannot write {err.filename}: {err.strerror}',

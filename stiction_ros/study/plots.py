@@ -48,12 +48,13 @@ def mv_op_figure(op, mv, title, path, op_label='OP (%)', mv_label='MV (%)'):
     return path
 
 
-def shared_cycles_figure(rows, gap, path):
+def shared_cycles_figure(rows, gap, floor, path):
     """
     Save the two loops' stiction probabilities of every pair (``study.shared_cycles``).
 
     Pairs that share a cycle are coloured by the source the view named; the
-    band of width ``gap`` about the diagonal is where it names none.
+    band of width ``gap`` about the diagonal, and below ``floor`` on both
+    axes (dotted), is where it names none.
     """
     fig = Figure(figsize=(5.5, 5))
     a = fig.subplots()
@@ -69,6 +70,8 @@ def shared_cycles_figure(rows, gap, path):
             a.scatter([r['down_p'] for r in got], [r['up_p'] for r in got], s=22,
                       color=colour[key], label=f'{word[key]} ({len(got)})')
     a.fill_between([0, 1], [-gap, 1 - gap], [gap, 1 + gap], color='0.9', zorder=0)
+    a.axhline(floor, color='0.5', ls=':', lw=1)
+    a.axvline(floor, color='0.5', ls=':', lw=1)
     a.set_xlim(-0.02, 1.02)
     a.set_ylim(-0.02, 1.02)
     a.set_xlabel('healthy loop carrying the cycle: stiction probability')

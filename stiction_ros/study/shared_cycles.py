@@ -103,8 +103,10 @@ class SharedCycleStudy:
             'harmonics_point_up': sum((r.up_harmonics or 0.0) > (r.down_harmonics or 0.0)
                                       for r in grouped),
             'carrier_flagged': len(flagged),
-            'carrier_flagged_named_carried': sum(r.source == 'up' for r in flagged),
-            'carrier_flagged_named_source': sum(r.source == 'down' for r in flagged),
+            # Flagged alone and at 0.5 or more, a carrier is never called one: its note says
+            # that it may be a second source beside the one named.
+            'carrier_flagged_source_up': sum(r.source == 'up' for r in flagged),
+            'carrier_flagged_source_down': sum(r.source == 'down' for r in flagged),
             'carrier_flagged_not_told': sum(r.source == '' for r in flagged),
             'unshared_cycle_flagged': sum(r.down_p >= 0.5 for r in unshared
                                           if r.down_p is not None),
