@@ -14,9 +14,7 @@ import argparse
 import os
 import sys
 
-from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description, run_stamp, write_study
-from stiction_ros.errors import DetectorFileError
+from stiction_ros.cli.text import description, run_seeded, run_stamp, write_study
 
 # Seeds of the probes' own generators (streams [seed, 11] and [seed, 13]) and of the
 # corpus for the detuned loops: 3960000- is where the limit-cycling refusal was scored.
@@ -69,18 +67,9 @@ def markdown(study: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
-    if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0:
-        print('stiction-probes: error: at least 1 seed and 1 job, and a first seed of 0 or '
-              'more', file=sys.stderr)
-        return 2
     from stiction_ros.study.probes import run
-    seeds = range(args.first_seed, args.first_seed + args.seeds)
-    try:
-        with terminal_progress() as say:
-            study = run(seeds, args.jobs,
-                        lambda i, n, s: say(Step('records read', i, n, f'{s:.0f} s')))
-    except DetectorFileError as err:
-        print(f'stiction-probes: error: {err}', file=sys.stderr)
+    study = run_seeded('stiction-probes', args, run, 'records read')
+    if study is None:
         return 2
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
     try:

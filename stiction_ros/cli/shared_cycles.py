@@ -18,9 +18,7 @@ import argparse
 import os
 import sys
 
-from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description, run_stamp, write_study
-from stiction_ros.errors import DetectorFileError
+from stiction_ros.cli.text import description, run_seeded, run_stamp, write_study
 
 FIRST_SEED = 6_300_000
 RULE = ('The rule was set on seeds 6100000-6100339 and scored once on 6200000-6200599 in a '
@@ -95,18 +93,9 @@ def markdown(study: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
-    if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0:
-        print('stiction-shared-cycles: error: at least 1 seed and 1 job, and a first seed of '
-              '0 or more', file=sys.stderr)
-        return 2
     from stiction_ros.study.shared_cycles import run
-    seeds = range(args.first_seed, args.first_seed + args.seeds)
-    try:
-        with terminal_progress() as say:
-            study = run(seeds, args.jobs,
-                        lambda i, n, s: say(Step('pairs read', i, n, f'{s:.0f} s')))
-    except DetectorFileError as err:
-        print(f'stiction-shared-cycles: error: {err}', file=sys.stderr)
+    study = run_seeded('stiction-shared-cycles', args, run, 'pairs read')
+    if study is None:
         return 2
     from stiction_ros.study.plots import shared_cycles_figure
     figure = os.path.relpath(args.figure, os.path.dirname(os.path.abspath(args.markdown)))

@@ -56,3 +56,26 @@ def run_stamp(jobs: int) -> dict:
     """Return when and on what a study ran, for its page: the date, the machine and jobs."""
     return {'date': datetime.date.today().isoformat(),
             'machine': f'{platform.machine()}, {os.cpu_count()} cores, {jobs} jobs'}
+
+
+def run_seeded(prog: str, args, run: Callable, unit: str):
+    """
+    Run a seeded study with a progress bar; return it, or None after printing why not.
+
+    ``args`` holds ``first_seed``, ``seeds`` and ``jobs``; ``run(seeds, jobs,
+    progress)`` is the study's own runner and ``unit`` what the bar counts.
+    A missing or damaged detector file is one line on stderr, not a traceback.
+    """
+    from stiction_ros.app.progress import Step, terminal_progress
+    from stiction_ros.errors import DetectorFileError
+    if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0:
+        print(f'{prog}: error: at least 1 seed and 1 job, and a first seed of 0 or more',
+              file=sys.stderr)
+        return None
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    try:
+        with terminal_progress() as say:
+            return run(seeds, args.jobs, lambda i, n, s: say(Step(unit, i, n, f'{s:.0f} s')))
+    except DetectorFileError as err:
+        print(f'{prog}: error: {err}', file=sys.stderr)
+        return None
