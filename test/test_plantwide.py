@@ -77,11 +77,28 @@ def test_clock_times_of_different_bases_are_never_compared_and_clockless_go_toge
     assert [g.clock for g in shared.groups] == [False, True]
 
 
+def test_loops_at_one_period_that_the_clocks_keep_apart_are_listed_as_not_compared():
+    day = 86400.0
+    members = [CycleMember('stamped', 60.0, 0.9, 0.0, day, 'UTC'), CycleMember('plain', 61.0, 0.1),
+               CycleMember('local', 60.5, 0.2, 0.0, day, 'no zone'),
+               CycleMember('next_day', 59.0, 0.3, day + 10.0, 2 * day, 'UTC'),
+               CycleMember('elsewhere', 200.0, 0.3)]
+    shared = shared_cycles(members)
+    assert not shared.groups
+    why = {tuple(sorted(n.names)): n.reason for n in shared.not_compared}
+    assert why[('plain', 'stamped')] == 'one has clock times, the other none'
+    assert why[('local', 'stamped')] == 'clock times on different bases (UTC, no zone)' or \
+        why[('local', 'stamped')] == 'clock times on different bases (no zone, UTC)'
+    assert why[('next_day', 'stamped')].startswith('recorded 0 s together')
+    assert not any('elsewhere' in names for names in why)
+    assert shared.not_compared_json()[0]['names'] and len(why) == 6
+
+
 def test_the_source_reads_sticky_and_stands_the_gap_above_every_other_member():
     close = shared_cycles([CycleMember('a', 50.0, 0.8), CycleMember('b', 50.0, 0.8 - GAP / 2)])
     g = close.groups[0]
     assert g.source is None and 'within' in g.reason
-    assert 'reads sticky on its own (0.80)' in g.note_for('a')
+    assert 'reads sticky on its own (0.800)' in g.note_for('a')
     assert 'cannot be told' in g.note_for('a') and 'cannot be told' in g.note_for('b')
     clear = shared_cycles([CycleMember('a', 50.0, 0.8), CycleMember('b', 50.0, 0.8 - 2 * GAP),
                            CycleMember('c', 52.0, None)])
@@ -182,8 +199,10 @@ def test_a_folder_audit_names_the_sticky_loop_as_the_source(pair, tmp_path, caps
     assert 'carried from' in rows['tank_level.csv']['shared_cycle']
     out = capsys.readouterr().out
     assert 'cycle of ' in out and ' s in 2 loops: ' in out
-    assert re.search(r'sticky_flow\.csv \(\d\.\d\d, likely source\), \S*tank_level\.csv '
-                     r'\(\d\.\d\d\)', out), out
+    assert re.search(r'sticky_flow\.csv \(\d\.\d{3}, likely source\), \S*tank_level\.csv '
+                     r'\(\d\.\d{3}\)', out), out
+    assert all('cycle' in r and 'shared_cycle' in r for r in summary['rows'])
+    assert summary['not_compared'] == []
 
 
 def test_the_study_writes_its_page_json_and_figure(tmp_path, capsys):

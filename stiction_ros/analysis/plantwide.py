@@ -99,28 +99,49 @@ class SharedCycle:
         """Return one line for member ``name``: what the shared period says about it."""
         me = next(m for m in self.members if m.name == name)
         others = ', '.join(m.name for m in self.members if m.name != name)
-        head = f'cycles at the period of {others} ({self.period_s:.0f} s)'
+        head = f"{others} cycling at this loop's period too ({self.period_s:.0f} s)"
         sticky = me.p is not None and me.p >= FLOOR
         if self.source == name:
             return f'{head}; this loop is the likely source ({self.reason})'
         if me.p is None:
             return f'{head}; not compared: this record has no stiction probability'
         if self.source is None:
-            alone = f'; reads sticky on its own ({me.p:.2f})' if sticky else ''
+            alone = f'; reads sticky on its own ({me.p:.3f})' if sticky else ''
             return f'{head}{alone}; which loop is the source cannot be told ({self.reason})'
         if sticky:
-            return (f'{head}; reads sticky on its own as well ({me.p:.2f}): it may be a '
+            return (f'{head}; reads sticky on its own as well ({me.p:.3f}): it may be a '
                     f'second source beside {self.source}')
         return (f'{head}; likely carried from {self.source}, whose valve explains the '
                 f'cycle better ({self.reason})')
 
 
+@dataclass(frozen=True)
+class NotCompared:
+    """Two loops that cycle at one period but whose records cannot be set side by side."""
+
+    names: tuple[str, str]
+    period_s: float
+    reason: str
+
+    def to_json(self) -> dict:
+        """Return plain JSON types."""
+        return {'names': list(self.names), 'period_s': round(self.period_s, 3),
+                'reason': self.reason}
+
+
 @dataclass
 class PlantWide:
-    """The shared cycles of a batch (``members``: the loops with a resolvable cycle)."""
+    """
+    The shared cycles of a batch (``members``: the loops with a resolvable cycle).
+
+    ``not_compared`` lists the pairs at one period that no group holds
+    together because their clock times do not allow it, with the reason, so
+    that a missing group is never read as "not coupled".
+    """
 
     groups: list[SharedCycle] = field(default_factory=list)
     members: int = 0
+    not_compared: list[NotCompared] = field(default_factory=list)
 
     def group_of(self, name: str) -> SharedCycle | None:
         """Return the shared cycle ``name`` belongs to, or None."""
@@ -130,23 +151,36 @@ class PlantWide:
         """Return the groups as plain JSON types."""
         return [g.to_json() for g in self.groups]
 
+    def not_compared_json(self) -> list:
+        """Return the pairs at one period that could not be compared, as plain JSON types."""
+        return [n.to_json() for n in self.not_compared]
 
-def _together_in_time(a: CycleMember, b: CycleMember, period_s: float) -> bool:
+
+def _apart_in_time(a: CycleMember, b: CycleMember, period_s: float) -> str:
+    """Return why the records of ``a`` and ``b`` cannot be compared, or '' if they can."""
+    if a.start is None and b.start is None:
+        return ''
     if a.start is None or b.start is None:
-        return a.start is None and b.start is None
+        return 'one has clock times, the other none'
     if a.clock != b.clock:
-        return False
+        return f'clock times on different bases ({a.clock}, {b.clock})'
     end_a = a.end if a.end is not None else math.inf
     end_b = b.end if b.end is not None else math.inf
-    return min(end_a, end_b) - max(a.start, b.start) >= MIN_OVERLAP_PERIODS * period_s
+    common = min(end_a, end_b) - max(a.start, b.start)
+    if common < MIN_OVERLAP_PERIODS * period_s:
+        return (f'recorded {max(common, 0.0):.0f} s together, under '
+                f'{MIN_OVERLAP_PERIODS:g} periods')
+    return ''
+
+
+def _same_period(a: CycleMember, b: CycleMember, tolerance: float) -> bool:
+    return max(a.period_s, b.period_s) / min(a.period_s, b.period_s) <= 1.0 + tolerance
 
 
 def _fits(group: list[CycleMember], m: CycleMember, tolerance: float) -> bool:
     # Complete linkage: within the tolerance of, and recorded with, every member.
-    periods = [g.period_s for g in group] + [m.period_s]
-    if max(periods) / min(periods) > 1.0 + tolerance:
-        return False
-    return all(_together_in_time(g, m, max(g.period_s, m.period_s)) for g in group)
+    return all(_same_period(g, m, tolerance)
+               and not _apart_in_time(g, m, max(g.period_s, m.period_s)) for g in group)
 
 
 def _source(members: list[CycleMember], gap: float) -> tuple[str | None, str]:
@@ -157,11 +191,11 @@ def _source(members: list[CycleMember], gap: float) -> tuple[str | None, str]:
     best, second = known[0], known[1]
     p1, p2 = best.p or 0.0, second.p or 0.0
     if p1 < FLOOR:
-        return None, f'no member reads sticky on its own (the highest, {best.name}, {p1:.2f})'
+        return None, f'no member reads sticky on its own (the highest, {best.name}, {p1:.3f})'
     if p1 - p2 < gap:
-        return None, (f'stiction probabilities {p1:.2f} ({best.name}) and {p2:.2f} '
+        return None, (f'stiction probabilities {p1:.3f} ({best.name}) and {p2:.3f} '
                       f'({second.name}) are within {gap:g}')
-    return best.name, f'stiction probability {p1:.2f} against at most {p2:.2f}'
+    return best.name, f'stiction probability {p1:.3f} against at most {p2:.3f}'
 
 
 def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
@@ -208,4 +242,14 @@ def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
         ordered = sorted(g, key=lambda m: (1.0 if m.p is None else -m.p, m.name))
         out.append(SharedCycle(float(np.median([m.period_s for m in g])), ordered, source,
                                reason, clock=any(m.start is not None for m in g)))
-    return PlantWide(out, len(members))
+    home = {m.name: i for i, g in enumerate(groups) for m in g}
+    apart = []
+    ordered_members = sorted(members, key=lambda m: (m.period_s, m.name))
+    for i, a in enumerate(ordered_members):
+        for b in ordered_members[i + 1:]:
+            if not _same_period(a, b, tolerance):
+                break
+            why = _apart_in_time(a, b, max(a.period_s, b.period_s))
+            if why and home[a.name] != home[b.name]:
+                apart.append(NotCompared((a.name, b.name), (a.period_s + b.period_s) / 2, why))
+    return PlantWide(out, len(members), apart)

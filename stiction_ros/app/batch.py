@@ -162,9 +162,8 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
                    summary=summary_line(report))
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']
-        cycle = cycle_of(report)
-        if cycle is not None:
-            row['cycle'] = cycle
+        # Always there (null when it does not apply): a script reads every row alike.
+        row.update(cycle=cycle_of(report), shared_cycle=None)
         if out_dir is not None:
             target = Path(out_dir) / (name or report_name(path, root))
             try:
@@ -209,7 +208,7 @@ def cycle_of(report: dict) -> dict | None:
             base = t0.replace(tzinfo=timezone.utc) if t0.tzinfo is None else t0
             start = base.timestamp() + float(window.get('start_s', 0.0))
             end = base.timestamp() + float(window.get('end_s', (n - 1) * ts))
-    return {'period_s': float(period), 'start': start, 'end': end, 'clock': clock}
+    return {'period_s': round(float(period), 3), 'start': start, 'end': end, 'clock': clock}
 
 
 def plant_wide(rows: list[dict]) -> PlantWide:
@@ -341,7 +340,8 @@ class Batch:
         return {'input': self.source, 'recordings': len(self.rows), 'failed': self.failed,
                 'skipped': self.skipped,
                 'seconds': round(self.seconds, 3), 'workers': self.workers,
-                'shared_cycles': self.shared.to_json(), 'rows': self.rows}
+                'shared_cycles': self.shared.to_json(),
+                'not_compared': self.shared.not_compared_json(), 'rows': self.rows}
 
 
 def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | None = None,

@@ -15,6 +15,10 @@ INPUT may also be a folder of recordings or a quoted glob ('plant/**/*.csv'):
 each is analysed on its own, over ``--jobs`` processes or a Dask cluster
 (``--scheduler tcp://HOST:8786``); one line per recording, ``--json`` the
 summary of all, ``--out-dir`` a report per recording (stiction_ros.app.batch).
+Recordings that cycle at one period (within 15 %) over the same hours are
+listed together after them, with the likely source: the loop whose
+stiction probability is 0.5 or more and 0.2 above the others' (README,
+"Cycles shared between recordings").
 """
 
 from __future__ import annotations
@@ -105,7 +109,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--html', dest='html_path', metavar='REPORT.html',
                    help='write the HTML report (figures embedded, PNGs beside it)')
     p.add_argument('--quiet', action='store_true', help='no progress on stderr')
-    many = p.add_argument_group('many recordings (INPUT a folder or a quoted glob)')
+    many = p.add_argument_group(
+        'many recordings (INPUT a folder or a quoted glob)',
+        'Each recording is analysed on its own. Those that cycle at one period\n'
+        '(within 15 %) over the same hours are listed together after them, with the\n'
+        'likely source: the loop whose stiction probability is 0.5 or more and 0.2\n'
+        "above the others'. Pairs at one period whose clock times keep them apart\n"
+        'are listed as not compared.')
     many.add_argument('--jobs', type=int, default=None,
                       help='worker processes; for one recording, threads of --explain '
                       '(default: every core this process may use)')
@@ -169,12 +179,16 @@ def shared_cycle_lines(batch: Batch) -> list[str]:
     for g in batch.shared.groups:
         # The paths as given: two level.csv of different units must not read as one.
         names = ', '.join(
-            f'{m.name} (' + ('-' if m.p is None else f'{m.p:.2f}')
+            f'{m.name} (' + ('-' if m.p is None else f'{m.p:.3f}')
             + (', likely source' if m.name == g.source else '') + ')' for m in g.members)
         clock = '' if g.clock else '; no clock times: taken as recorded together'
         source = '' if g.source else f'; source cannot be told: {g.reason}'
         out.append(f'cycle of {g.period_s:.0f} s in {len(g.members)} loops: {names}'
                    f'{source}{clock}')
+    # A missing group must not read as "not coupled" when the clocks kept them apart.
+    for n in batch.shared.not_compared:
+        out.append(f'cycle of {n.period_s:.0f} s in {n.names[0]} and {n.names[1]} not '
+                   f'compared: {n.reason}')
     return out
 
 
