@@ -132,7 +132,7 @@ class NotCompared:
 @dataclass
 class PlantWide:
     """
-    The shared cycles of a batch (``members``: the loops with a resolvable cycle).
+    The shared cycles of a batch.
 
     ``not_compared`` lists the pairs at one period that no group holds
     together because their clock times do not allow it, with the reason, so
@@ -140,7 +140,6 @@ class PlantWide:
     """
 
     groups: list[SharedCycle] = field(default_factory=list)
-    members: int = 0
     not_compared: list[NotCompared] = field(default_factory=list)
 
     def group_of(self, name: str) -> SharedCycle | None:
@@ -186,8 +185,7 @@ def _fits(group: list[CycleMember], m: CycleMember, tolerance: float) -> bool:
 def _source(members: list[CycleMember], gap: float) -> tuple[str | None, str]:
     known = sorted((m for m in members if m.p is not None), key=lambda m: -(m.p or 0.0))
     if len(known) < 2:
-        return None, ('fewer than two members have a stiction probability'
-                      if len(members) > 1 else 'one member')
+        return None, 'fewer than two members have a stiction probability'
     best, second = known[0], known[1]
     p1, p2 = best.p or 0.0, second.p or 0.0
     if p1 < FLOOR:
@@ -252,4 +250,4 @@ def shared_cycles(members: list[CycleMember], tolerance: float = TOLERANCE,
             why = _apart_in_time(a, b, max(a.period_s, b.period_s))
             if why and home[a.name] != home[b.name]:
                 apart.append(NotCompared((a.name, b.name), (a.period_s + b.period_s) / 2, why))
-    return PlantWide(out, len(members), apart)
+    return PlantWide(out, apart)

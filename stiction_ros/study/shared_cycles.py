@@ -130,6 +130,5 @@ def run(seeds: range, jobs: int = 1,
         study.rows.append(row)
         if progress is not None:
             progress(i, len(seeds), time.perf_counter() - t0)
-    study.rows.sort(key=lambda r: r.seed)
     study.seconds = time.perf_counter() - t0
     return study
