@@ -6,8 +6,9 @@ one figure among them) and learn from 2 843 simulated records (4 500 seeds
 less those that cannot be judged or are deadband-like), since each costs
 about 1.8 s of figures.  A network reading the trend itself costs a few
 milliseconds a record, so the same shape of network can learn from 480 000
-(``make cnn-large``, on a GPU), then from 7 262 more without the
-deadband-like sticky ones (``make cnn-large-tune``).  Alone it scores about
+(``make cnn-large``, on a GPU), then from 7 253 more without the
+deadband-like sticky ones, a quarter of them carrying a cycle from upstream
+(``make cnn-large-tune``).  Alone it scores about
 what the trees do; a logistic regression
 on the two, fitted on the training seeds with the trees' scores out of fold
 (``train.fit_stack``), scores better than either (docs/DETECTION.md,
