@@ -91,7 +91,7 @@ cnn: venv
 # cnn-large: 600 000 corpus seeds, 5 min on one H200 with 16 cores (hours on 2 cores)
 # (stiction_ros/resources/stiction_cnn_large_base.npz). cnn-large-tune: that network
 # trained on from its weights on 10 000 fresh seeds without the sticky records a
-# deadband explains, about 20-50 min on 2 cores (52 min measured beside a make detector;
+# deadband explains, about 50 min on 2 cores (52 measured beside a make detector;
 # stiction_cnn_large.npz, the one the detector reads). Then `make detector`.
 cnn-large: venv
 	$(PY) -m pip install --quiet -r requirements/train.txt
