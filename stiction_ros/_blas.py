@@ -14,7 +14,9 @@ processor with AVX2 and FMA (Intel since 2013, AMD since 2015).  OpenBLAS
 reads the choice when it loads, so the package does this on import, before
 NumPy or SciPy load theirs, overriding an ``OPENBLAS_CORETYPE`` of the
 user's (the state says so); child processes inherit it.  A process that
-loaded NumPy first keeps its own kernels.  Set ``STICTION_ROS_NATIVE_BLAS``
+loaded NumPy first keeps its own kernels (:func:`loaded_first`), and the
+detector's feature builder warns before it computes figures for its cache
+on them.  Set ``STICTION_ROS_NATIVE_BLAS``
 (to anything) to keep the host's choice; without AVX2 and FMA, off x86-64,
 or without ``/proc/cpuinfo`` (not Linux) nothing is pinned.
 
@@ -46,6 +48,7 @@ NUMPY_PIN = 'NPY_DISABLE_CPU_FEATURES'
 NUMPY_ABOVE_AVX2 = ('X86_V4', 'AVX512_ICL', 'AVX512_SPR')
 
 _state = 'not pinned yet'
+LOADED_FIRST = 'native (NumPy was loaded before stiction_ros)'
 
 
 def _cpu_flags() -> set[str]:
@@ -74,7 +77,7 @@ def pin() -> str:
     elif not set(NEEDS) <= _cpu_flags():
         _state = 'native (no AVX2 and FMA, or no /proc/cpuinfo)'
     elif 'numpy' in sys.modules and os.environ.get(CORETYPE) != KERNEL:
-        _state = 'native (NumPy was loaded before stiction_ros)'
+        _state = LOADED_FIRST
     else:
         os.environ[CORETYPE] = KERNEL
         _state = KERNEL if mine in (None, KERNEL) else f'{KERNEL} (over {CORETYPE}={mine})'
@@ -87,6 +90,11 @@ def pin() -> str:
 def state() -> str:
     """Return what :func:`pin` did: ``KERNEL``, or why the host's kernels were kept."""
     return _state
+
+
+def loaded_first() -> bool:
+    """Return True when NumPy came first and the host's kernels were kept for it."""
+    return _state == LOADED_FIRST
 
 
 def kernels() -> str:

@@ -117,3 +117,19 @@ def test_pinned_numpy_runs_the_code_an_avx2_processor_runs():
     assert len(run(code)) > 1
     # What a processor with AVX2 and FMA but no AVX-512 enables in the same NumPy.
     assert run(code, **{_blas.NUMPY_PIN: ' '.join(_blas.NUMPY_ABOVE_AVX2)}) == ['X86_V3']
+
+
+@pytest.mark.skipif(not X86_AVX2, reason='nothing is pinned off x86-64 with AVX2 and FMA')
+def test_a_script_that_loads_numpy_first_is_warned_before_figures_are_computed(tmp_path):
+    # An empty seed range: the warning comes before any figure is computed.
+    build = f"""
+import json, warnings, stiction_ros
+from stiction_ros.analysis.detection import dataset
+with warnings.catch_warnings(record=True) as seen:
+    warnings.simplefilter('always')
+    dataset.build(range(0), cache={str(tmp_path)!r}, progress=False)
+print(json.dumps([str(w.message) for w in seen if w.category is RuntimeWarning]))
+"""
+    late = run('import numpy\n' + build)
+    assert len(late) == 1 and 'import stiction_ros first' in late[0]
+    assert run(build) == []

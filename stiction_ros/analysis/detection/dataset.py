@@ -13,10 +13,11 @@ import hashlib
 from pathlib import Path
 import sys
 import time
+import warnings
 
 import numpy as np
 
-from stiction_ros._blas import kernels
+from stiction_ros._blas import kernels, loaded_first
 from stiction_ros._threads import pool_map
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.interpolated import lines_judgeable
@@ -156,6 +157,12 @@ def build(seeds: range, jobs: int = 1, progress: bool = True,
             codes, counts = out.pop('skip_codes').tolist(), out.pop('skip_counts').tolist()
             seconds = float(out.pop('seconds'))
             return {**out, 'skipped': dict(zip(codes, counts)), 'seconds': seconds}
+    if path is not None and loaded_first():
+        # The trap is a script's import order: half an hour of figures recomputed
+        # beside a cache that holds them, and bits that differ from the shipped model's.
+        warnings.warn("computing the figures on the host's BLAS kernels, not the pinned "
+                      'ones the cache of `make detector` holds: NumPy was loaded before '
+                      'stiction_ros; import stiction_ros first', RuntimeWarning, stacklevel=2)
     result = _compute(list(seeds), jobs, progress)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
