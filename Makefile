@@ -73,14 +73,15 @@ shared-cycles: venv
 	  --json docs/shared_cycles.json --figure docs/figures/shared_cycles.png
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
-# stiction_ros/resources/stiction_detector.npz.  About 33 min on 2 cores from scratch
+# stiction_ros/resources/stiction_detector.npz.  About 26-33 min on 2 cores from scratch
 # (the figures of 7 500 simulated records, the slip footprints of their sticky records and
 # the large network's logits of both sets), 1-2 min once out/detector_cache holds them.
 detector: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.detector
 
 # Retrain the detector's 1-D CNN (stiction_ros/resources/stiction_cnn.npz) on its own
-# simulated corpus, about 25 min on 2 cores; needs PyTorch (CPU), installed here.
+# simulated corpus, about 15 min on 2 cores (corpus 129 s, training 774 s measured
+# 2026-11-29); needs PyTorch (CPU), installed here.
 # Trains on a CUDA GPU when PyTorch sees one (make cnn CNN_ARGS='--jobs 16 --seeds 300000').
 # Then `make detector`: the network's logit is one of the detector's figures.
 cnn: venv
