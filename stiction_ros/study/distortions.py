@@ -25,7 +25,7 @@ class Trend:
 
 def lag_filter(x: np.ndarray, tau_samples: float) -> np.ndarray:
     """
-    Return ``x`` through a first-order lag of ``tau_samples`` (a transmitter's damping).
+    Return ``x`` through a first-order lag of ``tau_samples`` (a sensor's or a filter's).
 
     ``y[k] = a y[k-1] + (1 - a) x[k]`` with ``a = exp(-1 / tau_samples)``: the
     lag of a sensor averaging continuously, read at each sample with no added

@@ -4,8 +4,8 @@ Whether the verdict holds when instruments and timing distort the trend (``make 
 Real recordings differ from simulated ones first through instruments and
 timing, not friction.  Each simulated record of a seed range is read by the
 analyzer's own path (:func:`detect`) as simulated and again under each
-distortion of :data:`CONDITIONS`: a damped transmitter, tags skewed in time,
-swinging-door compression, a coarser export grid.  The valve is the same in
+distortion of :data:`CONDITIONS`: PV damped after the controller read
+it, tags skewed in time, swinging-door compression, a coarser export grid.  The valve is the same in
 every condition, so a change of answer is the instrument's doing.
 
 The records scored are those ``make accuracy`` scores: judgeable as
@@ -72,8 +72,9 @@ def _coarse_late(t: Trend, noise: float) -> Trend:
 # late against OP: the skew the clock check should find, 0 for none).
 CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
     ('as simulated', 'the reference', _as_is, 0),
-    ('PV damped', "PV through a first-order lag of 3 samples (a transmitter's damping)",
-     _damped, 0),
+    ('PV damped', 'PV through a first-order lag of 3 samples that the controller did not see '
+     "(a filter between the controller and the historian; a transmitter's damping that "
+     'the controller sees is a lag of the plant, which the corpus draws)', _damped, 0),
     ('PV late', 'PV and SP 3 samples later than OP (a clock skew between two tags)', _late, 3),
     ('PV early', 'PV and SP 3 samples earlier than OP (OP logged late)', _early, -3),
     ('compressed', 'OP and PV through a swinging-door historian (deviation: 2 noise SD of '
