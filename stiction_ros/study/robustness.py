@@ -5,8 +5,9 @@ Real recordings differ from simulated ones first through instruments and
 timing, not friction.  Each simulated record of a seed range is read by the
 analyzer's own path (:func:`detect`) as simulated and again under each
 distortion of :data:`CONDITIONS`: PV damped after the controller read
-it, tags skewed in time, swinging-door compression, a coarser export grid.  The valve is the same in
-every condition, so a change of answer is the instrument's doing.
+it, tags skewed in time, swinging-door compression, a coarser export grid.
+The valve is the same in every condition, so a change of answer is the
+instrument's doing.
 
 The records scored are those ``make accuracy`` scores: judgeable as
 simulated, stiction not hidden under PV's noise, sticky records not
