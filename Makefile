@@ -62,8 +62,8 @@ robustness: venv
 	  --json docs/robustness.json
 
 # The verdict on loops the simulator never draws: equal-percentage valves tuned hot,
-# gap and error-squared level controllers, loops detuned past stability
-# (docs/PROBES.md; about 10 min on 2 cores).
+# gap and error-squared level controllers, loops detuned past stability, controllers
+# run 3-10 times per historian sample (docs/PROBES.md; about 10 min on 2 cores).
 probes: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.probes --markdown docs/PROBES.md --json docs/probes.json
 

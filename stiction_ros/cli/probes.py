@@ -17,7 +17,8 @@ import sys
 from stiction_ros.cli.text import description, run_seeded, run_stamp, write_study
 
 # Seeds of the probes' own generators (streams [seed, 11] and [seed, 13]) and of the
-# corpus for the detuned loops: 3960000- is where the limit-cycling refusal was scored.
+# corpus for the detuned and fast-controller loops (the rate from [seed, 17]):
+# 3960000- is where the limit-cycling refusal was scored.
 FIRST_SEED = 3_960_000
 
 

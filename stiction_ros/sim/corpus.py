@@ -338,13 +338,21 @@ def _run(sc, plant, sp, op_open, pv_load, err, pid, sens, mv0):
     return out
 
 
-def simulate(scenario: Scenario, load: np.ndarray | None = None) -> dict:
+def simulate(scenario: Scenario, load: np.ndarray | None = None, oversample: int = 1,
+             average: bool = False) -> dict:
     """
     Simulate the closed loop of ``scenario``.
 
     ``load``: another load, in % MV as the scenario's own and at least
     ``scenario.samples`` long, added to them (another loop's cycle coming
     through a vessel: ``sim.coupled_loops``); None adds nothing.
+
+    ``oversample``: the controller, valve and plant run this many times per
+    record sample, as a DCS runs faster than its historian exports; loads,
+    set point and measurement error are drawn as for 1 and held over each
+    record sample, and the record is the value at each sample time, or with
+    ``average`` the mean over the sample (a historian's interval average).
+    1 (the corpus) gives the record of the scenario as drawn.
 
     Returns
     -------
@@ -354,6 +362,8 @@ def simulate(scenario: Scenario, load: np.ndarray | None = None) -> dict:
 
     """
     sc = scenario
+    if int(oversample) != oversample or oversample < 1:
+        raise ValueError(f'oversample must be a whole number of at least 1, not {oversample}')
     rng = np.random.default_rng([sc.seed, 1])
     n, ts = sc.samples, sc.sample_time
     load_in = None
@@ -379,18 +389,28 @@ def simulate(scenario: Scenario, load: np.ndarray | None = None) -> dict:
     room = min(high / max(need.max(), 1e-9), low / max(-need.min(), 1e-9))
     shrink = min(1.0, room)
     sp_mv, load = sp_mv * shrink, load * shrink
+    err, res, frozen = measurement(rng, sc, n, scale)
+    m = int(oversample)
+    if m > 1:
+        sc = _replace(sc, sample_time=ts / m, samples=n * m)
+        plant = plant_model(sc)
+        sp_mv, load, err = (np.repeat(a, m) for a in (sp_mv, load, err))
+        frozen = (frozen[0] * m, frozen[1] * m)
     if sc.integrating:
         sp = pv0 + scale * sp_mv
-        pv_load = sc.gain * ts * np.concatenate(([0.0], np.cumsum(load[:-1])))
+        pv_load = sc.gain * sc.sample_time * np.concatenate(([0.0], np.cumsum(load[:-1])))
     else:
         sp = pv0 + sc.gain * sp_mv
         pv_load = sc.gain * load
-    err, res, frozen = measurement(rng, sc, n, scale)
     sign = 1.0 if sc.gain > 0 else -1.0
     pid = _controller(sc, sign, mv0)
     sens = np.array([pv0, mv0, res, float(frozen[0]), float(frozen[1]), sc.rangeability])
     out = _run(sc, plant, sp, np.empty(0), pv_load, err, pid, sens, mv0)
-    return {'t': np.arange(n) * ts, 'op': out['op'], 'pv': out['pv'], 'sp': sp,
+    out['sp'] = sp
+    if m > 1:
+        for k in out:
+            out[k] = out[k].reshape(n, m).mean(axis=1) if average else out[k][::m].copy()
+    return {'t': np.arange(n) * ts, 'op': out['op'], 'pv': out['pv'], 'sp': out['sp'],
             'mv': out['mv']}
 
 

@@ -1,10 +1,13 @@
 """
 Loops the simulator never draws: what the detector answers on them (``make probes``).
 
-The detector learned from :mod:`stiction_ros.sim.corpus`, whose loops are
-linear PI loops on linear plants, kept inside OP's range.  A plant has more:
-equal-percentage valves whose installed gain grows as they open, level
-controllers with a gap or an error-squared law, loops tuned past stability.
+The detector learned from :mod:`stiction_ros.sim.corpus`, whose loops were
+linear PI loops on linear plants, kept inside OP's range, when the first
+probes were written (it has since drawn some of them), their controller run
+once per exported sample.  A plant has more: equal-percentage valves whose
+installed gain grows as they open, level controllers with a gap or an
+error-squared law, loops tuned past stability, controllers that run many
+times per historian sample.
 Each probe here draws one such family from its own generator (not the
 corpus's, so nothing in it was tuned on), and :func:`run` reads every record
 by the analyzer's own path (:func:`detect`).  A healthy record called
@@ -221,6 +224,30 @@ def detuned(seed: int) -> ProbeRecord:
                        sc.label)
 
 
+FAST = (3, 10)      # controller steps per historian sample, drawn per seed
+
+
+def fast_controller(seed: int, average: bool = False, twin: bool = False) -> ProbeRecord:
+    """
+    Return a corpus loop whose controller runs 3-10 times per historian sample (both labels).
+
+    A DCS runs its controllers every second or faster and the historian
+    exports every 10 s; the corpus runs the controller at the export's
+    sample.  Here the loop of ``draw_scenario(seed)``, tuned as drawn, runs
+    ``FAST`` times faster (``corpus.simulate``'s ``oversample``), and the
+    record is the value at each sample time, or with ``average`` the mean
+    over each sample.  With ``twin`` the same loop runs once per sample, as
+    the corpus draws it: the control that tells what the faster controller
+    itself changes.
+    """
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(seed)
+    m = 1 if twin else int(np.random.default_rng([seed, 17]).integers(FAST[0], FAST[1] + 1))
+    rec = simulate(sc, oversample=m, average=average)
+    return ProbeRecord(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating,
+                       sc.label)
+
+
 # name, what it stands for, generator.
 PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
@@ -235,6 +262,15 @@ PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
      'plain PI law settles; healthy', error_squared_level),
     ('detuned', 'a corpus loop with its controller gain raised 3-15 times, both labels',
      detuned),
+    ('fast controller', 'a corpus loop whose controller, valve and plant run 3-10 times per '
+     'historian sample (loads, set point and measurement error held over the sample), '
+     'exported as the value at each sample time; both labels', fast_controller),
+    ('fast controller, averaged', 'the same loops, draw for draw, exported as the mean over '
+     "each sample (a historian's interval average)",
+     lambda seed: fast_controller(seed, average=True)),
+    ('fast controller, twin', 'the same loops, draw for draw, with the controller run once '
+     'per sample as the corpus runs it: what the faster controller itself changes',
+     lambda seed: fast_controller(seed, twin=True)),
 )
 
 
