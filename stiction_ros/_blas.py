@@ -16,9 +16,9 @@ NumPy or SciPy load theirs, overriding an ``OPENBLAS_CORETYPE`` of the
 user's (the state says so); child processes inherit it.  A process that
 loaded NumPy first keeps its own kernels (:func:`loaded_first`), and the
 detector's feature builder warns before it computes figures for its cache
-on them.  Set ``STICTION_ROS_NATIVE_BLAS``
-(to anything) to keep the host's choice; without AVX2 and FMA, off x86-64,
-or without ``/proc/cpuinfo`` (not Linux) nothing is pinned.
+on them.  Set ``STICTION_ROS_NATIVE_BLAS`` (to anything) to keep the host's
+choice; without AVX2 and FMA, off x86-64, or without ``/proc/cpuinfo`` (not
+Linux) nothing is pinned.
 
 NumPy chooses its own code for ``exp`` and ``log`` by processor too (AVX-512
 or AVX2), which moves some figures by about 1e-16 (a review measured 3 of 10
@@ -26,9 +26,11 @@ records).  That is not pinned on import: NumPy's AVX2 code is slower (``exp``
 five times here) for everything the user's process does.  ``make detector``
 and ``make accuracy`` alone, where the bits matter, set ``NUMPY_PIN`` to
 ``NUMPY_ABOVE_AVX2`` on x86-64, so that NumPy runs a plain AVX2 processor's
-code on any host (``make bench-detector`` times what users run: unpinned).
-:func:`kernels` names OpenBLAS's kernels and NumPy's enabled dispatch
-targets, so that cached figures are never mixed between them.
+code on any host (``make bench-detector`` times what users run: unpinned);
+the feature builder warns a script that computes figures for its cache
+without that (:func:`numpy_above_avx2`).  :func:`kernels` names OpenBLAS's
+kernels and NumPy's enabled dispatch targets, so that cached figures are
+never mixed between them.
 """
 
 from __future__ import annotations
@@ -95,6 +97,15 @@ def state() -> str:
 def loaded_first() -> bool:
     """Return True when NumPy came first and the host's kernels were kept for it."""
     return _state == LOADED_FIRST
+
+
+def numpy_above_avx2() -> list[str]:
+    """Return NumPy's dispatch targets above AVX2 that this process runs (``[]`` when none)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:     # NumPy 1.x keeps them elsewhere
+        return []
+    return [t for t in NUMPY_ABOVE_AVX2 if t in __cpu_dispatch__ and __cpu_features__.get(t)]
 
 
 def kernels() -> str:

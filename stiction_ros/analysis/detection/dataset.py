@@ -17,7 +17,8 @@ import warnings
 
 import numpy as np
 
-from stiction_ros._blas import kernels, loaded_first
+from stiction_ros._blas import kernels, loaded_first, NUMPY_ABOVE_AVX2, numpy_above_avx2, \
+    NUMPY_PIN
 from stiction_ros._threads import pool_map
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.interpolated import lines_judgeable
@@ -163,6 +164,13 @@ def build(seeds: range, jobs: int = 1, progress: bool = True,
         warnings.warn("computing the figures on the host's BLAS kernels, not the pinned "
                       'ones the cache of `make detector` holds: NumPy was loaded before '
                       'stiction_ros; import stiction_ros first', RuntimeWarning, stacklevel=2)
+    if path is not None and numpy_above_avx2():
+        # The other way to miss the cache: an AVX-512 host without the Makefile's pin.
+        warnings.warn(f"computing the figures on NumPy's {', '.join(numpy_above_avx2())} "
+                      'code, not the AVX2 code the cache of `make detector` holds (last bits '
+                      "differ from the shipped model's): run it through make, or set "
+                      f"{NUMPY_PIN}='{' '.join(NUMPY_ABOVE_AVX2)}'", RuntimeWarning,
+                      stacklevel=2)
     result = _compute(list(seeds), jobs, progress)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
