@@ -53,10 +53,10 @@ accuracy: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.accuracy ../shared/data/plant_loops --reports out/plant_loops \
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
-# The verdict on simulated loops read through a damped transmitter, skewed clocks,
+# The verdict on simulated loops read with PV damped after the controller, skewed clocks,
 # historian compression and a coarser grid, beside the same loops as simulated
 # (docs/ROBUSTNESS.md; about 57 min on 2 cores: 3 426 s measured 2026-11-29, 1 630 s
-# on a faster host the day before).
+# on another host the day before).
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
 	  --json docs/robustness.json

@@ -154,3 +154,16 @@ print(json.dumps([_blas.numpy_above_avx2(),
     if above:
         assert all(t in said[0] for t in above)
     assert run(build, **{_blas.NUMPY_PIN: ' '.join(_blas.NUMPY_ABOVE_AVX2)}) == [[], []]
+
+
+@pytest.mark.parametrize('above', [['X86_V4'], []])
+def test_the_numpy_warning_follows_what_numpy_runs_on_any_host(above, monkeypatch, tmp_path):
+    import warnings
+    from stiction_ros.analysis.detection import dataset
+    monkeypatch.setattr(dataset, 'numpy_above_avx2', lambda: above)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter('always')
+        dataset.build(range(0), cache=tmp_path, progress=False)
+    said = [str(w.message) for w in seen if _blas.NUMPY_PIN in str(w.message)]
+    assert len(said) == len(above)
+    assert all('X86_V4' in m for m in said)

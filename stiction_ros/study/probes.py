@@ -234,7 +234,8 @@ def fast_controller(seed: int, average: bool = False, twin: bool = False) -> Pro
     A DCS runs its controllers every second or faster and the historian
     exports every 10 s; the corpus runs the controller at the export's
     sample.  Here the loop of ``draw_scenario(seed)``, tuned as drawn, runs
-    ``FAST`` times faster (``corpus.simulate``'s ``oversample``), and the
+    3-10 times faster (``FAST``, drawn per seed; ``corpus.simulate``'s
+    ``oversample``: noise and loads held over the sample), and the
     record is the value at each sample time, or with ``average`` the mean
     over each sample.  With ``twin`` the same loop runs once per sample, as
     the corpus draws it: the control that tells what the faster controller

@@ -75,7 +75,8 @@ CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
     ('as simulated', 'the reference', _as_is, 0),
     ('PV damped', 'PV through a first-order lag of 3 samples that the controller did not see '
      "(a filter between the controller and the historian; a transmitter's damping that "
-     'the controller sees is a lag of the plant, which the corpus draws)', _damped, 0),
+     'the controller sees is a lag of the plant with coloured noise, which the corpus '
+     'draws)', _damped, 0),
     ('PV late', 'PV and SP 3 samples later than OP (a clock skew between two tags)', _late, 3),
     ('PV early', 'PV and SP 3 samples earlier than OP (OP logged late)', _early, -3),
     ('compressed', 'OP and PV through a swinging-door historian (deviation: 2 noise SD of '
