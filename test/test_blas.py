@@ -119,17 +119,24 @@ def test_pinned_numpy_runs_the_code_an_avx2_processor_runs():
     assert run(code, **{_blas.NUMPY_PIN: ' '.join(_blas.NUMPY_ABOVE_AVX2)}) == ['X86_V3']
 
 
-@pytest.mark.skipif(not X86_AVX2, reason='nothing is pinned off x86-64 with AVX2 and FMA')
-def test_a_script_that_loads_numpy_first_is_warned_before_figures_are_computed(tmp_path):
-    # An empty seed range: the warning comes before any figure is computed.
-    build = f"""
+def _warned_build(cache, said: str) -> str:
+    """Return a script that builds an empty seed range for ``cache`` and prints ``said``."""
+    # An empty seed range: the warnings come before any figure is computed.
+    return f"""
 import json, warnings, stiction_ros
+from stiction_ros import _blas
 from stiction_ros.analysis.detection import dataset
 with warnings.catch_warnings(record=True) as seen:
     warnings.simplefilter('always')
-    dataset.build(range(0), cache={str(tmp_path)!r}, progress=False)
-print(json.dumps([str(w.message) for w in seen if 'import stiction_ros first' in str(w.message)]))
+    dataset.build(range(0), cache={str(cache)!r}, progress=False)
+print(json.dumps({said}))
 """
+
+
+@pytest.mark.skipif(not X86_AVX2, reason='nothing is pinned off x86-64 with AVX2 and FMA')
+def test_a_script_that_loads_numpy_first_is_warned_before_figures_are_computed(tmp_path):
+    build = _warned_build(tmp_path, '[str(w.message) for w in seen '
+                                    'if "import stiction_ros first" in str(w.message)]')
     late = run('import numpy\n' + build)
     assert len(late) == 1 and 'NumPy was loaded before stiction_ros' in late[0]
     assert run(build) == []
@@ -138,16 +145,8 @@ print(json.dumps([str(w.message) for w in seen if 'import stiction_ros first' in
 @pytest.mark.skipif(not X86_AVX2, reason='nothing is pinned off x86-64 with AVX2 and FMA')
 def test_a_script_without_the_numpy_pin_is_warned_where_numpy_would_run_avx512(tmp_path):
     # The other way to miss make detector's cache: the host's AVX-512 code.
-    build = f"""
-import json, warnings, stiction_ros
-from stiction_ros import _blas
-from stiction_ros.analysis.detection import dataset
-with warnings.catch_warnings(record=True) as seen:
-    warnings.simplefilter('always')
-    dataset.build(range(0), cache={str(tmp_path)!r}, progress=False)
-print(json.dumps([_blas.numpy_above_avx2(),
-                  [str(w.message) for w in seen if _blas.NUMPY_PIN in str(w.message)]]))
-"""
+    build = _warned_build(tmp_path, '[_blas.numpy_above_avx2(), [str(w.message) for w in '
+                                    'seen if _blas.NUMPY_PIN in str(w.message)]]')
     above, said = run(build)
     assert set(above) <= set(_blas.NUMPY_ABOVE_AVX2)
     assert len(said) == (1 if above else 0)
