@@ -164,9 +164,10 @@ def build(seeds: range, jobs: int = 1, progress: bool = True,
         warnings.warn("computing the figures on the host's BLAS kernels, not the pinned "
                       'ones the cache of `make detector` holds: NumPy was loaded before '
                       'stiction_ros; import stiction_ros first', RuntimeWarning, stacklevel=2)
-    if path is not None and numpy_above_avx2():
+    above = numpy_above_avx2() if path is not None else []
+    if above:
         # The other way to miss the cache: an AVX-512 host without the Makefile's pin.
-        warnings.warn(f"computing the figures on NumPy's {', '.join(numpy_above_avx2())} "
+        warnings.warn(f"computing the figures on NumPy's {', '.join(above)} "
                       'code, not the AVX2 code the cache of `make detector` holds (last bits '
                       "differ from the shipped model's): run it through make, or set "
                       f"{NUMPY_PIN}='{' '.join(NUMPY_ABOVE_AVX2)}'", RuntimeWarning,
