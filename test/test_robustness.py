@@ -7,6 +7,7 @@ import pytest
 
 from stiction_ros.study.distortions import compress, every, lag_filter, shift_pv, \
     swinging_door, Trend
+from stiction_ros.study.lag import GRID_R2, GRID_RATIO
 
 
 def _trend(n=50):
@@ -87,6 +88,14 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     text = md.read_text()
     assert all(f'| {c[0]} |' in text for c in CONDITIONS)
     assert "## How the clock-skew check's thresholds were chosen" in text
+    assert "## How the lag check's thresholds were chosen" in text
+    lag = json.loads(js.read_text())['lag_choice']
+    assert len(lag['rows']) == len(GRID_R2) * len(GRID_RATIO)
+    r2, ratio = lag['chosen']
+    assert f'| **{r2}** | **{ratio}** |' in text
+    # The pair chosen reads no lag in more than the allowed share of records as given.
+    row = next(r for r in lag['rows'] if [r['min_r2'], r['ratio']] == lag['chosen'])
+    assert all(row[f'every_{k}']['false'] <= lag['max_false'] for k in lag['every'])
     assert json.loads(js.read_text())['seeds'] == [3_600_000, 3_600_006]
 
 

@@ -207,12 +207,20 @@ def realigned_rows(detection) -> int:
     return int(detection.details.get('timing', {}).get('shift_rows', 0) or 0)
 
 
+def realigned_lag(detection) -> float:
+    """Return the rows of lag PV was read back through (0 when none)."""
+    if detection is None:
+        return 0.0
+    return float(detection.details.get('timing', {}).get('lag_rows', 0.0) or 0.0)
+
+
 def realigned(held, detection):
-    """Return the signals as the detection read them: PV shifted against OP by its skew."""
-    shift = realigned_rows(detection)
-    if not shift:
+    """Return the signals as the detection read them: PV against OP by its skew or lag."""
+    shift, lag = realigned_rows(detection), realigned_lag(detection)
+    if not (shift or lag):
         return held
-    op, pv, sp, _ = Alignment(shift, 1.0, 1.0, shift).apply(held['op'], held['pv'], held['sp'])
+    how = Alignment(shift, 1.0, 1.0, shift, lag=lag)
+    op, pv, sp, _ = how.apply(held['op'], held['pv'], held['sp'])
     return {**held, 'op': op, 'pv': pv, 'sp': sp}
 
 
@@ -286,6 +294,12 @@ def analyze(record: Record, options: Options | None = None,
             side = 'late' if shift > 0 else 'early'
             notes.append(f'signatures: PV read {abs(shift)} rows {side} against OP, paired '
                          'again as the detector read it (clock skew between the two tags)')
+        lag = realigned_lag(detection)
+        if lag:
+            report['signature_window']['pv_lag_rows'] = lag
+            notes.append(f'signatures: PV read back through the first-order lag of {lag:.3g} '
+                         'rows the detector found on it (a filter the controller did not '
+                         'see)')
     ham = None
     if (win is not None and options.hammerstein and not analysis.fits
             and detection.judge.ok and not detection.period_problem):

@@ -23,7 +23,7 @@ from stiction_ros.errors import DetectorFileError
 
 # The scoring seeds of make accuracy: the first row repeats its simulated row.
 SEEDS = dataset.TEST
-# The training seeds the clock-skew check's thresholds were chosen on.
+# The training seeds the clock-skew and lag checks' thresholds were chosen on.
 SKEW_SEEDS = range(dataset.TRAIN.start, dataset.TRAIN.start + 1500)
 
 
@@ -33,8 +33,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--first-seed', type=int, default=SEEDS.start)
     p.add_argument('--seeds', type=int, default=len(SEEDS))
     p.add_argument('--skew-seeds', type=int, default=len(SKEW_SEEDS),
-                   help='training records the clock-skew thresholds are chosen on again '
-                        f'(seeds from {SKEW_SEEDS.start}; 0 to skip)')
+                   help='training records the clock-skew and lag thresholds are chosen on '
+                        f'again (seeds from {SKEW_SEEDS.start}; 0 to skip)')
     p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
     p.add_argument('--markdown', default='docs/ROBUSTNESS.md')
     p.add_argument('--json', default='docs/robustness.json')
@@ -72,14 +72,15 @@ def markdown(study: dict) -> str:
         'loop now cycles in under 10 samples, a refusal the issue asks for. Median '
         'shift: of the probability against the record as simulated. "realigned": records '
         'the clock-skew check (DETECTION.md, section 1) read shifted, and of those, by the '
-        'skew the condition put in; "without the check": the same records read as given '
-        '(at 0.5, and with the band).',
+        'skew the condition put in; "lag": records the lag check read with OP and SP '
+        'through the lag it found on PV; "without the checks": the same records read as '
+        'given (at 0.5, and with the band).',
         '',
         '| condition | at 0.5 | sticky found | healthy flagged | new flags | lost | lost: '
         'refused (under-sampled) | with the '
         'band | on the decided (share) | refused | median shift healthy / sticky | '
-        'realigned (right) | without the check: at 0.5 / band |',
-        '|---|---|---|---|---|---|---|---|---|---|---|---|---|',
+        'realigned (right) | lag | without the checks: at 0.5 / band |',
+        '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
     for r in study['rows']:
         lines.append(
@@ -90,12 +91,15 @@ def markdown(study: dict) -> str:
             f"{_f(r['decided_balanced_accuracy'])} ({r['decided_share']:.2f}) | "
             f"{r['refused']} | {_f(r['median_shift_healthy'], 2)} / "
             f"{_f(r['median_shift_sticky'], 2)} | {r['realigned']} ({r['realigned_right']}) | "
+            f"{r.get('lagged', '-')} | "
             f"{_f(r['without_check_balanced_accuracy'])} / "
             f"{_f(r['without_check_banded_balanced_accuracy'])} |")
     lines += ['', '| condition | what it stands for |', '|---|---|']
     lines += [f"| {r['condition']} | {r['what']} |" for r in study['rows']]
     if study.get('skew_choice'):
         lines += skew_table(study['skew_choice'])
+    if study.get('lag_choice'):
+        lines += lag_table(study['lag_choice'])
     lines += ['', 'What the rows mean for an engineer, and what was done about them: '
               '[DETECTION.md](DETECTION.md), section 5.', '']
     return '\n'.join(lines)
@@ -128,6 +132,37 @@ def skew_table(choice: dict) -> list:
     return lines
 
 
+def lag_table(choice: dict) -> list:
+    """Return the lines that show how the lag check's thresholds were chosen."""
+    a, b = choice['seeds']
+    grids = choice['every']
+    lines = ['', "## How the lag check's thresholds were chosen", '',
+             f'Training seeds {a}-{b - 1} only (`stiction_ros.study.lag`, '
+             f"{choice['seconds']:.0f} s): each record exported every "
+             f"{', every '.join(map(str, grids))} rows, then as given, with PV through a "
+             'first-order lag of '
+             f"{', '.join(f'{d:g}' for d in choice['damped'])} samples of the simulation, and "
+             f"skewed by {', '.join(f'{k:+d}' for k in choice['skews'])} rows; the law is read "
+             f"through lags of {', '.join(f'{v:g}' for v in choice['lags'])} rows. False: "
+             'records as given read through a lag; right: lagged records read through one; '
+             'stolen: skewed records read through a lag instead of shifted. A lag is read '
+             'when the law through it reaches the R² below and leaves at most 1/ratio of '
+             'what the best shift leaves unexplained. Chosen: the most right among the pairs '
+             f"with at most {choice['max_false']:.1%} false on every grid: **R² at least "
+             f"{choice['chosen'][0]}, ratio {choice['chosen'][1]}**.", '',
+             '| R² at least | ratio | ' + ' | '.join(
+                 f'every {k}: false / right / stolen' for k in grids) + ' |',
+             '|---|---|' + '---|' * len(grids)]
+    for r in choice['rows']:
+        cells = [f"{100 * r[f'every_{k}']['false']:.1f} % / "
+                 f"{100 * r[f'every_{k}']['right']:.1f} % / "
+                 f"{100 * r[f'every_{k}']['stolen']:.1f} %" for k in grids]
+        mark = '**' if [r['min_r2'], r['ratio']] == list(choice['chosen']) else ''
+        lines.append(f"| {mark}{r['min_r2']}{mark} | {mark}{r['ratio']}{mark} | "
+                     + ' | '.join(cells) + ' |')
+    return lines
+
+
 @pipe_safe
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
@@ -137,18 +172,19 @@ def main(argv: list[str] | None = None) -> int:
               '--skew-seeds of 0 or more', file=sys.stderr)
         return 2
     from stiction_ros.study.robustness import run
-    from stiction_ros.study.skew import choose
+    from stiction_ros.study import lag, skew
     seeds = range(args.first_seed, args.first_seed + args.seeds)
+    chosen_on = range(SKEW_SEEDS.start, SKEW_SEEDS.start + args.skew_seeds)
     try:
-        choice = (choose(range(SKEW_SEEDS.start, SKEW_SEEDS.start + args.skew_seeds),
-                         args.jobs).to_json() if args.skew_seeds > 0 else None)
+        choice = skew.choose(chosen_on, args.jobs).to_json() if args.skew_seeds > 0 else None
+        lags = lag.choose(chosen_on, args.jobs).to_json() if args.skew_seeds > 0 else None
         with terminal_progress() as say:
             study = run(seeds, args.jobs,
                         lambda i, n, s: say(Step('records read', i, n, f'{s:.0f} s')))
     except (DetectorFileError, ValueError) as err:
         print(f'stiction-robustness: error: {err}', file=sys.stderr)
         return 2
-    out = {**study.to_json(), 'skew_choice': choice,
+    out = {**study.to_json(), 'skew_choice': choice, 'lag_choice': lags,
            'run': run_stamp(args.jobs)}
     write_study(out, args.json, args.markdown, markdown)
     for r in out['rows']:

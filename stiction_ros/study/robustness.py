@@ -5,7 +5,8 @@ Real recordings differ from simulated ones first through instruments and
 timing, not friction.  Each simulated record of a seed range is read by the
 analyzer's own path (:func:`detect`) as simulated and again under each
 distortion of :data:`CONDITIONS`: PV damped after the controller read
-it, tags skewed in time, swinging-door compression, a coarser export grid.
+it (on the lag check's grid and off it, rounded after the filter), tags
+skewed in time, swinging-door compression, a coarser export grid.
 The valve is the same in every condition, so a change of answer is the
 instrument's doing.
 
@@ -13,9 +14,10 @@ The records scored are those ``make accuracy`` scores: judgeable as
 simulated, stiction not hidden under PV's noise, sticky records not
 deadband-like.  A distorted record the analyzer cannot judge counts as a
 refusal (``cannot tell``), as at run time.  Nothing is fitted or chosen
-here; the model is the shipped one.  A record the clock-skew check
-(:mod:`stiction_ros.analysis.detection.timing`) realigns is read again
-without it, so each row shows what the check bought.
+here; the model is the shipped one.  A record the timing checks
+(:mod:`stiction_ros.analysis.detection.timing`: a clock skew, a lag after the
+controller) realign is read again without them, so each row shows what the
+checks bought.
 """
 
 from dataclasses import dataclass, field
@@ -42,6 +44,14 @@ def _as_is(t: Trend, noise: float) -> Trend:
 
 def _damped(t: Trend, noise: float) -> Trend:
     return Trend(t.op, lag_filter(t.pv, 3.0), t.sp, t.sample_time)
+
+
+def _damped_rounded(t: Trend, noise: float) -> Trend:
+    # A time constant off the lag check's grid, and a historian's resolution after
+    # the filter, which undoing the lag amplifies.
+    pv = lag_filter(t.pv, 4.5)
+    q = (float(np.ptp(t.pv)) or 1.0) / 2000.0
+    return Trend(t.op, np.round(pv / q) * q, t.sp, t.sample_time)
 
 
 def _late(t: Trend, noise: float) -> Trend:
@@ -77,6 +87,9 @@ CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
      "(a filter between the controller and the historian; a transmitter's damping that "
      'the controller sees is a lag of the plant with coloured noise, which the corpus '
      'draws)', _damped, 0),
+    ('PV damped 4.5, rounded', 'PV through a first-order lag of 4.5 samples the controller '
+     'did not see, then rounded to 1/2000 of its range (a resolution after the filter)',
+     _damped_rounded, 0),
     ('PV late', 'PV and SP 3 samples later than OP (a clock skew between two tags)', _late, 3),
     ('PV early', 'PV and SP 3 samples earlier than OP (OP logged late)', _early, -3),
     ('compressed', 'OP and PV through a swinging-door historian (deviation: 2 noise SD of '
@@ -93,12 +106,13 @@ def _read(seed: int) -> tuple:
     """
     Return one seed's label, kind, whether it is scored, and its answers.
 
-    That is (seed, label, kind, scored, [(answer, probability, shift, refusal)
-    per condition], as given); ``refusal`` is the code of the reason a record
-    was not judged ('' when it was).
+    That is (seed, label, kind, scored, [(answer, probability, shift, refusal,
+    lag) per condition], as given); ``shift`` is the rows the skew check moved
+    PV by and ``lag`` the rows of lag the lag check read; ``refusal`` is the
+    code of the reason a record was not judged ('' when it was).
 
     ``as given``: (answer, probability) of each condition read without the
-    clock-skew check (the same as with it where the check shifted nothing).
+    timing checks (the same as with them where they moved nothing).
     """
     from stiction_ros.analysis.detection.dataset import MIN_FOOTPRINT, stiction_footprint
     from stiction_ros.analysis.detection.deadband_like import slip_footprint
@@ -116,16 +130,17 @@ def _read(seed: int) -> tuple:
         t = distort(trend, sc.noise_std)
         try:
             d = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating)
-            shift = d.details.get('timing', {}).get('shift_rows', 0)
+            timing = d.details.get('timing', {})
+            shift, lag = timing.get('shift_rows', 0), timing.get('lag_rows', 0.0)
             d0 = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating,
-                        realign=False) if shift else d
+                        realign=False) if shift or lag else d
         except Exception as exc:
             # An analyzer failure is the finding: say which record and condition.
             raise RuntimeError(f'the analyzer failed on seed {seed}, {name}: {exc!r}') from exc
         if d.probability is None and not out:
             # Not judgeable as simulated: not a record make accuracy scores.
             return int(seed), bool(sc.label), kind, False, [], []
-        out.append((d.answer, d.probability, shift, '' if d.judge.ok else d.judge.code))
+        out.append((d.answer, d.probability, shift, '' if d.judge.ok else d.judge.code, lag))
         given.append((d0.answer, d0.probability))
     return int(seed), bool(sc.label), kind, True, out, given
 
@@ -146,6 +161,8 @@ class Robustness:
     seconds: float
     unscored: int = 0
     seed: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    # (records, conditions): rows of lag the lag check read OP and SP through (0: none)
+    lag: np.ndarray | None = None
     rows: list = field(init=False)
 
     def __post_init__(self):
@@ -166,6 +183,7 @@ class Robustness:
                 'balanced_accuracy': balanced_accuracy(c), **c,
                 'realigned': int(np.sum(shifted != 0)),
                 'realigned_right': int(np.sum(shifted == skew)) if skew else 0,
+                'lagged': 0 if self.lag is None else int(np.sum(self.lag[:, j] > 0)),
                 'without_check_balanced_accuracy': balanced_accuracy(given),
                 'without_check_banded_balanced_accuracy': balanced_accuracy(
                     confusion(y, self.given_answer[:, j] == 'stiction')),
@@ -209,11 +227,13 @@ def run(seeds: range, jobs: int = 1, say=None) -> Robustness:
     prob = np.array([[np.nan if c[1] is None else c[1] for c in r[4]] for r in kept])
     shift = np.array([[c[2] for c in r[4]] for r in kept], dtype=np.int64)
     refusal = np.array([[c[3] for c in r[4]] for r in kept], dtype=object)
+    lag = np.array([[c[4] for c in r[4]] for r in kept], dtype=np.float64)
     ans0 = np.array([[c[0] for c in r[5]] for r in kept])
     prob0 = np.array([[np.nan if c[1] is None else c[1] for c in r[5]] for r in kept])
     return Robustness(seeds, np.array([r[1] for r in kept]), np.array([r[2] for r in kept]),
                       ans, prob, shift, refusal, ans0, prob0, time.perf_counter() - t0,
-                      len(got) - len(kept), np.array([r[0] for r in kept], dtype=np.int64))
+                      len(got) - len(kept), np.array([r[0] for r in kept], dtype=np.int64),
+                      lag)
 
 
 def _tick(say, i: int, n: int, t0: float) -> None:

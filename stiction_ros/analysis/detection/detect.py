@@ -165,7 +165,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     """
     Return the :class:`Detection` of one contiguous stretch of OP, PV (and SP).
 
-    ``realign=False`` reads a skewed record as given (``make robustness``
+    ``realign=False`` reads a skewed or lagged record as given (``make robustness``
     compares the two; the analyzer always realigns).
     Raises :class:`model_file.DetectorFileError` when the model file is
     missing or damaged (never a silent fallback).
@@ -186,7 +186,7 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
         if realign:
             skew, op, pv, sp, kept = timing.realign(op, pv, sp, held.count)
         else:
-            skew = replace(timing.alignment(op, pv, sp), shift=0)
+            skew = replace(timing.alignment(op, pv, sp), shift=0, lag=0.0)
         holds['timing'] = skew.to_json()
         judge = judgeable(op, pv, sample_time, sp)
     if not judge.ok:

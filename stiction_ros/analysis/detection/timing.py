@@ -26,6 +26,20 @@ grid two and three times coarser than the controller's scan (so that the
 law holds only roughly, as on a real export) and skewed by up to three rows
 either way (:mod:`stiction_ros.study.skew`): the pair that realigns the most
 skewed records right while realigning at most 0.5 % of the unskewed ones.
+A filter between the controller and the historian (PV read through a
+first-order lag the controller never saw) moves the law another way: a lag
+commutes with it, so OP and SP seen through the same lag against the lagged
+PV are the law again.  :func:`lag_profile` fits it through each lag of
+``LAGS`` rows; a lag is read when the law through it explains at least
+``MIN_LAG_R2`` and leaves at most ``1 / LAG_RATIO`` of what the best shift (or
+none) leaves unexplained (chosen on the same training seeds, on grids one to
+three times coarser, by :mod:`stiction_ros.study.lag`), refined between the
+grid's neighbours, and the detector then reads PV back through the lag's
+exact inverse (:func:`undo_lag`): PV's phase and its white noise as the
+controller saw them.  The inverse amplifies what was added after the filter
+(a historian's rounding) by at most ``(1 + a) / (1 - a)``, 6 times for a lag
+of 3 rows; ``make robustness`` reads such a record too.
+
 Every shared plant record with a law to fit fits it best as given (R² 0.33-1.00
 there, at most 0.91 one row off): their exports are not skewed, and none is
 realigned (three fit no row of their own: LIC33101, and the two FIC10112 records,
@@ -35,9 +49,12 @@ whose PV is constant).
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 
-__all__ = ['Alignment', 'alignment', 'HELD', 'law_profile', 'law_r2', 'MARGIN', 'MAX_SHIFT',
-           'MIN_LAW_R2', 'propose', 'realign']
+__all__ = ['Alignment', 'alignment', 'HELD', 'LAG_RATIO', 'lag_profile', 'LAGS', 'law_profile',
+           'law_r2', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose', 'propose_lag',
+           'realign', 'refine_lag', 'through_lag', 'undo_lag']
 
 # Rows of skew looked for either way: 5 rows of a 10 s export are 50 s.
 MAX_SHIFT = 5
@@ -45,6 +62,13 @@ MAX_SHIFT = 5
 # realigned, and this much more there than as given (chosen as the module says).
 MIN_LAW_R2 = 0.3
 MARGIN = 0.3
+# First-order lags (rows) looked for on PV after the controller read it.
+LAGS = (1.0, 2.0, 3.0, 5.0, 8.0)
+# A lag is read when the law fitted through it explains at least this share of
+# OP's changes and leaves at most 1 / LAG_RATIO of what the best shift (or no
+# shift) leaves unexplained (chosen as :mod:`stiction_ros.study.lag` says).
+MIN_LAG_R2 = 0.8
+LAG_RATIO = 5.0
 # Fewer rows than this inside OP's range: no law can be told from chance.
 MIN_ROWS = 50
 # Why a skew is not made once rows repeated in OP and PV alike were dropped.
@@ -60,6 +84,10 @@ class Alignment:
     r2_best: float        # its R² at the best shift
     best: int             # that best shift, proposed or not
     declined: str = ''    # why a shift the law proposed was not made ('' when none was)
+    lag: float = 0.0      # rows of first-order lag read on PV against OP; 0: none
+    lag_best: float = 0.0  # the lag that fits best, proposed or not (0: none fitted)
+    r2_lag: float = float('nan')  # the law's R² through that lag
+    declined_lag: float = 0.0  # a lag proposed but not read (``declined`` says why)
 
     @property
     def checked(self) -> bool:
@@ -75,6 +103,9 @@ class Alignment:
         controller's set point and measurement come from one block.
         """
         n, k = len(op), self.shift
+        if self.lag > 0:
+            # PV as the controller read it: its noise white again, its phase the law's.
+            return op, undo_lag(pv, self.lag), sp, np.arange(n)
         if k == 0:
             return op, pv, sp, np.arange(n)
         if k > 0:    # PV late: OP of row t goes with PV of row t + k
@@ -86,10 +117,14 @@ class Alignment:
 
     def decline(self, why: str) -> 'Alignment':
         """Return this check with its shift not made, and why."""
-        return replace(self, shift=0, declined=why) if self.shift else self
+        if not (self.shift or self.lag):
+            return self
+        return replace(self, shift=0, lag=0.0, declined=why, declined_lag=self.lag)
 
     def describe(self, sample_time: float) -> str:
-        """Return the evidence line of a shift made or declined ('' when none)."""
+        """Return the evidence line of a shift or lag made or declined ('' when none)."""
+        if self.lag > 0 or self.declined_lag > 0:
+            return self._describe_lag(sample_time)
         k = abs(self.shift or (self.best if self.declined else 0))
         if k == 0:
             return ''
@@ -102,33 +137,85 @@ class Alignment:
         return (f'PV is {rows}: {fit} (a clock skew between the two tags); the verdict, the '
                 'signature vote and the stiction size read it realigned')
 
+    def _describe_lag(self, sample_time: float) -> str:
+        lag = self.lag or self.declined_lag
+        fit = (f"the controller's PI law fits OP's changes with R² {self.r2_lag:.2f} with OP "
+               f'seen through it and at most {self.r2_best:.2f} at any shift')
+        what = (f'PV reads through a first-order lag of about {lag:.3g} rows '
+                f'({lag * sample_time:.4g} s) that the controller did not see')
+        if self.declined:
+            return f'{what} ({fit}), but {self.declined}: read as exported'
+        return (f'{what}: {fit} (a filter between the controller and the historian); the '
+                'verdict, the signature vote and the stiction size read OP and SP through '
+                'the same lag')
+
     def to_json(self) -> dict:
         """Return the check as JSON types (None where the law could not be fitted)."""
         def num(v):
             return round(float(v), 4) if np.isfinite(v) else None
         return {'shift_rows': self.shift, 'law_r2_as_given': num(self.r2_as_given),
                 'law_r2_best': num(self.r2_best), 'best_shift_rows': self.best,
+                'lag_rows': self.lag, 'best_lag_rows': self.lag_best,
+                'law_r2_lag': num(self.r2_lag),
                 'not_realigned_because': self.declined or None}
 
 
-def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int) -> float:
+def through_lag(x: np.ndarray, lag: float) -> np.ndarray:
+    """
+    Return ``x`` through a first-order lag of ``lag`` rows, started at rest on its first row.
+
+    ``y[k] = a y[k-1] + (1 - a) x[k]``, ``a = exp(-1 / lag)``: what a filter
+    averaging continuously shows when read once a row.
+    """
+    if not lag > 0:
+        raise ValueError(f'a lag needs a positive time constant, not {lag}')
+    x = np.asarray(x, dtype=np.float64)
+    a = float(np.exp(-1.0 / lag))
+    return lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])[0]
+
+
+def undo_lag(y: np.ndarray, lag: float) -> np.ndarray:
+    """Return the ``x`` that :func:`through_lag` turns into ``y`` (its exact inverse)."""
+    y = np.asarray(y, dtype=np.float64)
+    a = float(np.exp(-1.0 / lag))
+    x = y.copy()
+    x[1:] = (y[1:] - a * y[:-1]) / (1.0 - a)
+    return x
+
+
+def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int,
+           lag: float = 0.0) -> float:
     """
     Return the R² of the velocity-form PI law with PV taken ``shift`` rows later than OP.
 
+    ``lag`` > 0 (rows): the law fitted to OP and SP seen through the first-order
+    lag PV may have been read through after the controller (:func:`through_lag`),
+    since a lag that commutes with the law moves OP's side of it as it moved PV.
     NaN when fewer than ``MIN_ROWS`` rows with OP inside its range remain,
-    or OP never changes there.
+    or OP never changes there (or, with a lag, a row of OP or PV is missing).
     """
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
     if op.size < MIN_ROWS + 2 or op.shape != pv.shape:
         return float('nan')
-    e = -pv if sp is None else np.broadcast_to(np.asarray(sp, np.float64), pv.shape) - pv
-    d_op, d_e, e = np.diff(op), np.diff(e), e[1:]
+    sp = None if sp is None else np.broadcast_to(np.asarray(sp, np.float64), pv.shape)
     finite = np.isfinite(op)
     if not finite.any():
         return float('nan')
     # A gap (NaN) or either end of OP's range: not the law's rows.
     inside = finite & (op > np.min(op[finite])) & (op < np.max(op[finite]))
+    if lag > 0:
+        if not (finite.all() and np.isfinite(pv).all()
+                and (sp is None or np.isfinite(sp).all())):
+            return float('nan')
+        # A row at OP's limit stays in the lagged OP for a few time constants.
+        out = np.flatnonzero(~inside)
+        for j in range(1, int(np.ceil(3.0 * lag)) + 1):
+            inside[np.minimum(out + j, op.size - 1)] = False
+        op = through_lag(op, lag)
+        sp = None if sp is None else through_lag(sp, lag)
+    e = -pv if sp is None else sp - pv
+    d_op, d_e, e = np.diff(op), np.diff(e), e[1:]
     free = inside[1:] & inside[:-1]
     known = np.isfinite(d_e) & np.isfinite(e)
     n, k = len(d_op), int(shift)
@@ -171,14 +258,68 @@ def law_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.nda
     return np.array([law_r2(op, pv, sp, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
 
 
+def lag_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
+    """Return the law's R² through every lag of :data:`LAGS` (NaN: not fitted)."""
+    return np.array([law_r2(op, pv, sp, 0, lag) for lag in LAGS])
+
+
+def propose_lag(shifts: np.ndarray, lags: np.ndarray, min_r2: float = MIN_LAG_R2,
+                ratio: float = LAG_RATIO) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return (lag proposed, best lag, its R²) for each row of shift and lag R² profiles.
+
+    A lag is proposed when the law through it explains at least ``min_r2`` and
+    leaves at most ``1 / ratio`` of what the best shift leaves unexplained:
+    R² is read as a share of variance, so a law that fits 0.99 where it fits
+    0.95 otherwise is told as well as one of 0.5 against 0.9.  Ties go to the
+    shorter lag.
+    """
+    shifts = np.atleast_2d(np.asarray(shifts, dtype=np.float64))
+    lags = np.atleast_2d(np.asarray(lags, dtype=np.float64))
+    r2 = np.where(np.isfinite(lags), lags, -np.inf)
+    i = np.argmax(r2, axis=1)
+    best, top = np.asarray(LAGS)[i], r2[np.arange(len(r2)), i]
+    other = np.clip(np.max(np.where(np.isfinite(shifts), shifts, -np.inf), axis=1), 0, 1)
+    # No law as given, no lag: the shifts would be no reference to beat.
+    ok = ((top >= min_r2) & (1.0 - other >= ratio * (1.0 - top)) & (top > other)
+          & np.isfinite(shifts[:, MAX_SHIFT]))
+    fitted = np.isfinite(top)
+    return (np.where(ok, best, 0.0), np.where(fitted, best, 0.0),
+            np.where(fitted, top, np.nan))
+
+
+def refine_lag(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
+               lag: float) -> tuple[float, float]:
+    """
+    Return (lag, R²): the lag between the grid's neighbours of ``lag`` the law fits best.
+
+    The grid of :data:`LAGS` only finds a lag; a filter's time constant is
+    seldom a whole number of rows, and undoing a lag of 3 rows where PV went
+    through 4 leaves a quarter of the phase in.
+    """
+    i = LAGS.index(lag)
+    lo = LAGS[i - 1] if i else LAGS[0] / 2
+    hi = LAGS[i + 1] if i + 1 < len(LAGS) else 1.5 * LAGS[-1]
+    got = minimize_scalar(lambda v: -law_r2(op, pv, sp, 0, float(v)), bounds=(lo, hi),
+                          method='bounded', options={'xatol': 0.02})
+    near = round(float(got.x), 2)
+    r2, r2_near = law_r2(op, pv, sp, 0, lag), law_r2(op, pv, sp, 0, near)
+    return (near, r2_near) if r2_near > r2 else (lag, r2)
+
+
 def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Alignment:
-    """Return the :class:`Alignment` of a record: the skew its controller's law shows, if any."""
+    """Return the :class:`Alignment` of a record: the skew or lag its controller's law shows."""
     r2 = law_profile(op, pv, sp)
     given = float(r2[MAX_SHIFT])
     if not np.isfinite(given):
         return Alignment(0, float('nan'), float('nan'), 0)
     shift, best, top = propose(r2)
-    return Alignment(int(shift[0]), given, float(top[0]), int(best[0]))
+    lag, lag_best, lag_top = (float(v[0]) for v in propose_lag(r2, lag_profile(op, pv, sp)))
+    if lag:
+        lag, lag_top = refine_lag(op, pv, sp, lag)
+    # A lag explains what no shift does; where it does not, a shift may.
+    return Alignment(0 if lag else int(shift[0]), given, float(top[0]), int(best[0]),
+                     lag=lag, lag_best=lag_best, r2_lag=lag_top)
 
 
 def realign(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, dropped: int = 0) -> tuple:
