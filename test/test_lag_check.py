@@ -130,3 +130,43 @@ def test_a_lag_in_a_record_with_held_rows_is_named_but_not_made():
     assert timing['lag_rows'] == 0 and 'repeated in OP and PV' in timing['not_realigned_because']
     assert any('first-order lag of about' in line and 'read as exported' in line
                for line in got.evidence)
+
+
+@pytest.mark.slow
+def test_the_shipped_thresholds_are_the_ones_the_training_records_choose():
+    from stiction_ros.analysis.detection.timing import LAG_RATIO, MIN_LAG_R2
+    from stiction_ros.study.lag import choose, EVERY, MAX_FALSE
+    choice = choose(range(0, 1500), jobs=2)
+    assert choice.chosen == (MIN_LAG_R2, LAG_RATIO)
+    row = next(r for r in choice.rows if (r['min_r2'], r['ratio']) == choice.chosen)
+    assert all(row[f'every_{k}']['false'] <= MAX_FALSE for k in EVERY)
+
+
+def test_the_signature_vote_reads_pv_as_the_verdict_read_it():
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.record import Record
+    from stiction_ros.analysis.signatures.all import compute_signatures
+    sc, t = _loop(48)                  # a Choudhury valve, S 1.8 % J 1.9 %, in a limit cycle
+    d = _damped(t, 3.0)
+    n = len(t.op)
+    rec = Record(t=np.arange(n) * t.sample_time, sample_time=t.sample_time,
+                 signals={'op': d.op, 'pv': d.pv, 'sp': d.sp}, valid=np.ones(n, bool),
+                 source={'path': 'damped.csv', 'format': 'csv'})
+    res = analyze(rec, Options(hammerstein=False)).report
+    lag = res['stiction']['detector']['timing']['lag_rows']
+    assert abs(lag - 3.0) <= 0.05
+    win = res['signature_window']
+    assert win['pv_lag_rows'] == lag and win['samples'] == n
+    _, sigs = compute_signatures(d.op, undo_lag(d.pv, lag), d.sp, t.sample_time,
+                                 integrating=sc.integrating)
+    got = res['stiction']['signatures']
+    for name, sig in sigs.items():
+        assert got[name] == sig.to_json(), name
+    assert any('read back through the first-order lag' in note for note in res['notes'])
+    # PV read back is the loop's own: the PV-OP ellipse measures the valve's band again
+    # and Horch's test sees the relay-like cross-correlation the lag had smoothed away.
+    assert abs(got['ellipse']['value'] - sc.S) < 0.1 * sc.S
+    _, as_given = compute_signatures(d.op, d.pv, d.sp, t.sample_time,
+                                     integrating=sc.integrating)
+    assert as_given['ellipse'].value < 0.85 * sc.S
+    assert got['horch']['stiction'] is True and as_given['horch'].stiction is False
