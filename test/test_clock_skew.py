@@ -73,7 +73,8 @@ def test_too_few_rows_inside_ops_range_is_no_check_at_all():
     a = alignment(op, pv, None)
     assert not a.checked and a.shift == 0
     assert a.to_json() == {'shift_rows': 0, 'law_r2_as_given': None, 'law_r2_best': None,
-                           'best_shift_rows': 0, 'lag_rows': 0.0, 'best_lag_rows': 0.0,
+                           'best_shift_rows': 0, 'lag_rows': 0.0, 'lag_found_rows': 0.0,
+                           'best_lag_rows': 0.0,
                            'law_r2_lag': None, 'not_realigned_because': None}
 
 

@@ -1,9 +1,9 @@
-"""The lag check: the controller's own law tells when PV was read through a filter it never saw."""
+"""The lag check: the controller's law read through a lag on OP's side names a filter or a PID."""
 
 import numpy as np
 import pytest
 
-from stiction_ros.analysis.detection.timing import alignment, lag_profile, LAGS, law_r2, \
+from stiction_ros.analysis.detection.timing import alignment, lag_profile, LAGS, law_r2, LEAD, \
     propose_lag, through_lag, undo_lag
 from stiction_ros.study.distortions import every, lag_filter, shift_pv, Trend
 
@@ -53,7 +53,7 @@ def test_a_damped_record_is_read_with_pv_as_the_controller_read_it(lag):
     # 4 rows is off the grid: the lag is refined between its neighbours.
     _, t = _loop(26)
     d = _damped(t, lag)
-    a = alignment(d.op, d.pv, d.sp)
+    a = alignment(d.op, d.pv, d.sp, undo_lag=True)
     assert abs(a.lag - lag) <= 0.05 and a.shift == 0 and a.r2_lag > 1 - 1e-4
     op, pv, sp, rows = a.apply(d.op, d.pv, d.sp)
     assert op is d.op and sp is d.sp and rows.tolist() == list(range(len(t.op)))
@@ -101,8 +101,27 @@ def test_a_gap_leaves_the_lag_unfitted_and_the_record_as_given():
     assert a.lag == 0 and a.lag_best == 0 and a.to_json()['law_r2_lag'] is None
 
 
-def test_the_detector_reads_a_damped_record_as_its_controller_saw_it():
+def test_by_default_a_lag_is_named_with_the_pid_it_cannot_be_told_from_and_not_undone():
     from stiction_ros.analysis.detection.detect import detect
+    sc, t = _loop(26)
+    d = _damped(t, 3.0)
+    a = alignment(d.op, d.pv, d.sp)
+    assert a.lag == 0 and abs(a.declined_lag - 3.0) <= 0.05 and a.declined == LEAD
+    assert a.apply(d.op, d.pv, d.sp)[1] is d.pv
+    got = detect(d.op, d.pv, d.sp, t.sample_time, sc.integrating)
+    timing = got.details['timing']
+    assert timing['lag_rows'] == 0 and timing['not_realigned_because'] == LEAD
+    assert any('derivative (lead) action' in line and 'read as exported' in line
+               for line in got.evidence)
+    as_given = detect(d.op, d.pv, d.sp, t.sample_time, sc.integrating, realign=False)
+    assert got.probability == as_given.probability
+
+
+def test_the_detector_told_to_undo_reads_a_damped_record_as_its_controller_saw_it(
+        monkeypatch):
+    from stiction_ros.analysis.detection import timing as timing_module
+    from stiction_ros.analysis.detection.detect import detect
+    monkeypatch.setattr(timing_module, 'UNDO_LAG', True)
     sc, t = _loop(26)
     d = _damped(t, 3.0)
     got = detect(d.op, d.pv, d.sp, t.sample_time, sc.integrating)
@@ -118,8 +137,10 @@ def test_the_detector_reads_a_damped_record_as_its_controller_saw_it():
     assert not any('first-order lag' in line for line in as_given.evidence)
 
 
-def test_a_lag_in_a_record_with_held_rows_is_named_but_not_made():
+def test_a_lag_in_a_record_with_held_rows_is_named_but_not_made(monkeypatch):
+    from stiction_ros.analysis.detection import timing as timing_module
     from stiction_ros.analysis.detection.detect import detect
+    monkeypatch.setattr(timing_module, 'UNDO_LAG', True)
     sc, t = _loop(26)
     d = _damped(t, 3.0)
     op, pv = d.op.copy(), d.pv.copy()
@@ -142,8 +163,10 @@ def test_the_shipped_thresholds_are_the_ones_the_training_records_choose():
     assert all(row[f'every_{k}']['false'] <= MAX_FALSE for k in EVERY)
 
 
-def test_the_signature_vote_reads_pv_as_the_verdict_read_it():
+def test_the_signature_vote_reads_pv_as_the_verdict_read_it(monkeypatch):
+    from stiction_ros.analysis.detection import timing as timing_module
     from stiction_ros.analysis.pipeline import analyze, Options
+    monkeypatch.setattr(timing_module, 'UNDO_LAG', True)
     from stiction_ros.analysis.record import Record
     from stiction_ros.analysis.signatures.all import compute_signatures
     sc, t = _loop(48)                  # a Choudhury valve, S 1.8 % J 1.9 %, in a limit cycle

@@ -72,14 +72,15 @@ def markdown(study: dict) -> str:
         'loop now cycles in under 10 samples, a refusal the issue asks for. Median '
         'shift: of the probability against the record as simulated. "realigned": records '
         'the clock-skew check (DETECTION.md, section 1) read shifted, and of those, by the '
-        'skew the condition put in; "lag": records the lag check read with OP and SP '
-        'through the lag it found on PV; "without the checks": the same records read as '
-        'given (at 0.5, and with the band).',
+        'skew the condition put in; "lag found": records where the lag check found PV '
+        'read through a lag after the controller (named, not undone: DETECTION.md, '
+        'section 1); "without the checks": the same records read as given (at 0.5, and '
+        'with the band).',
         '',
         '| condition | at 0.5 | sticky found | healthy flagged | new flags | lost | lost: '
         'refused (under-sampled) | with the '
         'band | on the decided (share) | refused | median shift healthy / sticky | '
-        'realigned (right) | lag | without the checks: at 0.5 / band |',
+        'realigned (right) | lag found | without the checks: at 0.5 / band |',
         '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
     for r in study['rows']:

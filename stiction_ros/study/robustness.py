@@ -108,7 +108,7 @@ def _read(seed: int) -> tuple:
 
     That is (seed, label, kind, scored, [(answer, probability, shift, refusal,
     lag) per condition], as given); ``shift`` is the rows the skew check moved
-    PV by and ``lag`` the rows of lag the lag check read; ``refusal`` is the
+    PV by and ``lag`` the rows of lag the lag check found; ``refusal`` is the
     code of the reason a record was not judged ('' when it was).
 
     ``as given``: (answer, probability) of each condition read without the
@@ -131,9 +131,9 @@ def _read(seed: int) -> tuple:
         try:
             d = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating)
             timing = d.details.get('timing', {})
-            shift, lag = timing.get('shift_rows', 0), timing.get('lag_rows', 0.0)
+            shift, lag = timing.get('shift_rows', 0), timing.get('lag_found_rows', 0.0)
             d0 = detect(t.op, t.pv, t.sp, t.sample_time, sc.integrating,
-                        realign=False) if shift or lag else d
+                        realign=False) if shift or timing.get('lag_rows') else d
         except Exception as exc:
             # An analyzer failure is the finding: say which record and condition.
             raise RuntimeError(f'the analyzer failed on seed {seed}, {name}: {exc!r}') from exc
@@ -161,7 +161,7 @@ class Robustness:
     seconds: float
     unscored: int = 0
     seed: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    # (records, conditions): rows of lag the lag check read OP and SP through (0: none)
+    # (records, conditions): rows of lag the lag check found on PV (0: none)
     lag: np.ndarray | None = None
     rows: list = field(init=False)
 

@@ -30,15 +30,16 @@ A filter between the controller and the historian (PV read through a
 first-order lag the controller never saw) moves the law another way: a lag
 commutes with it, so OP and SP seen through the same lag against the lagged
 PV are the law again.  :func:`lag_profile` fits it through each lag of
-``LAGS`` rows; a lag is read when the law through it explains at least
+``LAGS`` rows; a lag is found when the law through it explains at least
 ``MIN_LAG_R2`` and leaves at most ``1 / LAG_RATIO`` of what the best shift (or
 none) leaves unexplained (chosen on the same training seeds, on grids one to
-three times coarser, by :mod:`stiction_ros.study.lag`), refined between the
-grid's neighbours, and the detector then reads PV back through the lag's
-exact inverse (:func:`undo_lag`): PV's phase and its white noise as the
-controller saw them.  The inverse amplifies what was added after the filter
-(a historian's rounding) by at most ``(1 + a) / (1 - a)``, 6 times for a lag
-of 3 rows; ``make robustness`` reads such a record too.
+three times coarser, by :mod:`stiction_ros.study.lag`), and refined between
+the grid's neighbours.  It is named, not undone (:data:`LEAD`): a PI law
+with OP seen through a lag is a series PID whose derivative time is that
+lag, so OP, PV and SP cannot tell the filter from the controller.  Reading
+PV back through the lag's exact inverse (:func:`undo_lag`; ``undo_lag=True``)
+took a damped simulated PV back to the verdict of the loop, and turned a
+sticky plant record's 0.56 into 0.04 (DETECTION.md, section 1).
 
 Every shared plant record with a law to fit fits it best as given (R² 0.33-1.00
 there, at most 0.91 one row off): their exports are not skewed, and none is
@@ -53,8 +54,8 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 __all__ = ['Alignment', 'alignment', 'HELD', 'LAG_RATIO', 'lag_profile', 'LAGS', 'law_profile',
-           'law_r2', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose', 'propose_lag',
-           'realign', 'refine_lag', 'through_lag', 'undo_lag']
+           'law_r2', 'LEAD', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose',
+           'propose_lag', 'realign', 'refine_lag', 'through_lag', 'UNDO_LAG', 'undo_lag']
 
 # Rows of skew looked for either way: 5 rows of a 10 s export are 50 s.
 MAX_SHIFT = 5
@@ -73,6 +74,14 @@ LAG_RATIO = 5.0
 MIN_ROWS = 50
 # Why a skew is not made once rows repeated in OP and PV alike were dropped.
 HELD = 'rows repeated in OP and PV alike were dropped, so rows are not evenly spaced'
+# Why a lag is named but not undone: a PI law through a first-order lag on OP's side is,
+# to the letter, a series PID whose derivative time is that lag, so OP, PV and SP cannot
+# tell a filter after the controller from a controller with derivative action.  Undoing
+# it helped simulated loops and ruined a sticky plant record (DETECTION.md, section 1).
+LEAD = ('a controller with derivative (lead) action of that time reads the same from OP, '
+        'PV and SP')
+# Whether the detector reads PV back through the lag it found (see LEAD: not by default).
+UNDO_LAG = False
 
 
 @dataclass(frozen=True)
@@ -143,6 +152,10 @@ class Alignment:
                f'seen through it and at most {self.r2_best:.2f} at any shift')
         what = (f'PV reads through a first-order lag of about {lag:.3g} rows '
                 f'({lag * sample_time:.4g} s) that the controller did not see')
+        if self.declined == LEAD:
+            return (f'OP and PV read as if PV went through a first-order lag of about '
+                    f'{lag:.3g} rows ({lag * sample_time:.4g} s) after the controller '
+                    f'({fit}), but {self.declined}: read as exported')
         if self.declined:
             return f'{what} ({fit}), but {self.declined}: read as exported'
         return (f'{what}: {fit} (a filter between the controller and the historian); the '
@@ -155,8 +168,8 @@ class Alignment:
             return round(float(v), 4) if np.isfinite(v) else None
         return {'shift_rows': self.shift, 'law_r2_as_given': num(self.r2_as_given),
                 'law_r2_best': num(self.r2_best), 'best_shift_rows': self.best,
-                'lag_rows': self.lag, 'best_lag_rows': self.lag_best,
-                'law_r2_lag': num(self.r2_lag),
+                'lag_rows': self.lag, 'lag_found_rows': self.lag or self.declined_lag,
+                'best_lag_rows': self.lag_best, 'law_r2_lag': num(self.r2_lag),
                 'not_realigned_because': self.declined or None}
 
 
@@ -307,8 +320,14 @@ def refine_lag(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     return (near, r2_near) if r2_near > r2 else (lag, r2)
 
 
-def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Alignment:
-    """Return the :class:`Alignment` of a record: the skew or lag its controller's law shows."""
+def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
+              undo_lag: bool | None = None) -> Alignment:
+    """
+    Return the :class:`Alignment` of a record: the skew or lag its controller's law shows.
+
+    A lag found is named and, unless ``undo_lag`` (None: :data:`UNDO_LAG`),
+    declined with :data:`LEAD`.
+    """
     r2 = law_profile(op, pv, sp)
     given = float(r2[MAX_SHIFT])
     if not np.isfinite(given):
@@ -318,18 +337,21 @@ def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> Alignmen
     if lag:
         lag, lag_top = refine_lag(op, pv, sp, lag)
     # A lag explains what no shift does; where it does not, a shift may.
-    return Alignment(0 if lag else int(shift[0]), given, float(top[0]), int(best[0]),
-                     lag=lag, lag_best=lag_best, r2_lag=lag_top)
+    got = Alignment(0 if lag else int(shift[0]), given, float(top[0]), int(best[0]),
+                    lag=lag, lag_best=lag_best, r2_lag=lag_top)
+    undo = UNDO_LAG if undo_lag is None else undo_lag
+    return got.decline(LEAD) if lag and not undo else got
 
 
-def realign(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, dropped: int = 0) -> tuple:
+def realign(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, dropped: int = 0,
+            undo_lag: bool | None = None) -> tuple:
     """
     Return ``(Alignment, op, pv, sp, rows)``: the record as the detector reads it.
 
     ``dropped``: rows repeated in OP and PV alike that were left out before
     (``stale.drop_held``); a skew is then named but not made (:data:`HELD`).
     """
-    skew = alignment(op, pv, sp)
+    skew = alignment(op, pv, sp, undo_lag)
     if dropped:
         skew = skew.decline(HELD)
     return (skew, *skew.apply(op, pv, sp))
