@@ -119,16 +119,21 @@ def skew_table(choice: dict) -> list:
              'realigned; right: skewed records realigned by their skew; wrong: by another. '
              f"Chosen: the most right among the pairs with at most {choice['max_false']:.1%} "
              f"false on every grid: **R² at least {choice['chosen'][0]}, by a margin of "
-             f"{choice['chosen'][1]}**.", '',
-             '| R² at least | margin | ' + ' | '.join(
-                 f'every {k}: false / right / wrong' for k in grids) + ' |',
+             f"{choice['chosen'][1]}**.", '']
+    return lines + _grid(choice, 'margin', 'wrong')
+
+
+def _grid(choice: dict, knob: str, third: str) -> list:
+    """Return the table of a threshold grid: R² floor, ``knob``, and three shares per grid."""
+    grids = choice['every']
+    lines = [f'| R² at least | {knob} | ' + ' | '.join(
+                 f'every {k}: false / right / {third}' for k in grids) + ' |',
              '|---|---|' + '---|' * len(grids)]
     for r in choice['rows']:
-        cells = [f"{100 * r[f'every_{k}']['false']:.1f} % / "
-                 f"{100 * r[f'every_{k}']['right']:.1f} % / "
-                 f"{100 * r[f'every_{k}']['wrong']:.1f} %" for k in grids]
-        mark = '**' if [r['min_r2'], r['margin']] == list(choice['chosen']) else ''
-        lines.append(f"| {mark}{r['min_r2']}{mark} | {mark}{r['margin']}{mark} | "
+        cells = [' / '.join(f"{100 * r[f'every_{k}'][c]:.1f} %" for c in ('false', 'right', third))
+                 for k in grids]
+        mark = '**' if [r['min_r2'], r[knob]] == list(choice['chosen']) else ''
+        lines.append(f"| {mark}{r['min_r2']}{mark} | {mark}{r[knob]}{mark} | "
                      + ' | '.join(cells) + ' |')
     return lines
 
@@ -145,23 +150,13 @@ def lag_table(choice: dict) -> list:
              f"{', '.join(f'{d:g}' for d in choice['damped'])} samples of the simulation, and "
              f"skewed by {', '.join(f'{k:+d}' for k in choice['skews'])} rows; the law is read "
              f"through lags of {', '.join(f'{v:g}' for v in choice['lags'])} rows. False: "
-             'records as given read through a lag; right: lagged records read through one; '
-             'stolen: skewed records read through a lag instead of shifted. A lag is read '
+             'a lag found in records as given; right: in lagged records; stolen: in skewed '
+             'records, instead of their shift. A lag is found '
              'when the law through it reaches the R² below and leaves at most 1/ratio of '
              'what the best shift leaves unexplained. Chosen: the most right among the pairs '
              f"with at most {choice['max_false']:.1%} false on every grid: **R² at least "
-             f"{choice['chosen'][0]}, ratio {choice['chosen'][1]}**.", '',
-             '| R² at least | ratio | ' + ' | '.join(
-                 f'every {k}: false / right / stolen' for k in grids) + ' |',
-             '|---|---|' + '---|' * len(grids)]
-    for r in choice['rows']:
-        cells = [f"{100 * r[f'every_{k}']['false']:.1f} % / "
-                 f"{100 * r[f'every_{k}']['right']:.1f} % / "
-                 f"{100 * r[f'every_{k}']['stolen']:.1f} %" for k in grids]
-        mark = '**' if [r['min_r2'], r['ratio']] == list(choice['chosen']) else ''
-        lines.append(f"| {mark}{r['min_r2']}{mark} | {mark}{r['ratio']}{mark} | "
-                     + ' | '.join(cells) + ' |')
-    return lines
+             f"{choice['chosen'][0]}, ratio {choice['chosen'][1]}**.", '']
+    return lines + _grid(choice, 'ratio', 'stolen')
 
 
 @pipe_safe
