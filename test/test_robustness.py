@@ -93,9 +93,6 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     assert len(lag['rows']) == len(GRID_R2) * len(GRID_RATIO)
     r2, ratio = lag['chosen']
     assert f'| **{r2}** | **{ratio}** |' in text
-    # The pair chosen reads no lag in more than the allowed share of records as given.
-    row = next(r for r in lag['rows'] if [r['min_r2'], r['ratio']] == lag['chosen'])
-    assert all(row[f'every_{k}']['false'] <= lag['max_false'] for k in lag['every'])
     assert json.loads(js.read_text())['seeds'] == [3_600_000, 3_600_006]
 
 

@@ -200,7 +200,11 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
         # A row or two held in 751 is routine; a third of the record is not.
         lines.insert(0 if held.share >= NOTABLE else len(lines), held.describe(sample_time))
     if skew.describe(sample_time):
-        lines.insert(0, skew.describe(sample_time))
+        # A lag named but not undone changed nothing read: a caveat, after the findings.
+        if skew.declined == timing.LEAD:
+            lines.append(skew.describe(sample_time))
+        else:
+            lines.insert(0, skew.describe(sample_time))
     lerped = interpolated.interpolated_rows(op, pv)
     if lerped.any():
         # Read as they are (a fair guess of the trend), but named: the noise reads low.

@@ -35,8 +35,8 @@ PV are the law again.  :func:`lag_profile` fits it through each lag of
 none) leaves unexplained (chosen on the same training seeds, on grids one to
 three times coarser, by :mod:`stiction_ros.study.lag`), and refined between
 the grid's neighbours.  It is named, not undone (:data:`LEAD`): a PI law
-with OP seen through a lag is a series PID whose derivative time is that
-lag, so OP, PV and SP cannot tell the filter from the controller.  Reading
+with OP seen through a lag is a PID with derivative action on PV, so OP,
+PV and SP cannot tell the filter from the controller.  Reading
 PV back through the lag's exact inverse (:func:`undo_lag`; ``undo_lag=True``)
 took a damped simulated PV back to the verdict of the loop, and turned a
 sticky plant record's 0.56 into 0.04 (DETECTION.md, section 1).
@@ -74,12 +74,13 @@ LAG_RATIO = 5.0
 MIN_ROWS = 50
 # Why a skew is not made once rows repeated in OP and PV alike were dropped.
 HELD = 'rows repeated in OP and PV alike were dropped, so rows are not evenly spaced'
-# Why a lag is named but not undone: a PI law through a first-order lag on OP's side is,
-# to the letter, a series PID whose derivative time is that lag, so OP, PV and SP cannot
+# Why a lag is named but not undone: F(OP) = PI(F(SP) - PV) is OP = PI(SP - F^-1 PV), a
+# PID whose derivative acts on PV alone (backward difference, derivative time a/(1 - a)
+# rows, about the lag less half a row), so OP, PV and SP, set-point steps included, cannot
 # tell a filter after the controller from a controller with derivative action.  Undoing
 # it helped simulated loops and ruined a sticky plant record (DETECTION.md, section 1).
-LEAD = ('a controller with derivative (lead) action of that time reads the same from OP, '
-        'PV and SP')
+LEAD = ('a PID controller with derivative action on PV of about that time reads the same '
+        'from OP, PV and SP')
 # Whether the detector reads PV back through the lag it found (see LEAD: not by default).
 UNDO_LAG = False
 
@@ -159,8 +160,8 @@ class Alignment:
         if self.declined:
             return f'{what} ({fit}), but {self.declined}: read as exported'
         return (f'{what}: {fit} (a filter between the controller and the historian); the '
-                'verdict, the signature vote and the stiction size read OP and SP through '
-                'the same lag')
+                'verdict, the signature vote and the stiction size read PV back through the '
+                "lag's inverse")
 
     def to_json(self) -> dict:
         """Return the check as JSON types (None where the law could not be fitted)."""
@@ -189,6 +190,8 @@ def through_lag(x: np.ndarray, lag: float) -> np.ndarray:
 
 def undo_lag(y: np.ndarray, lag: float) -> np.ndarray:
     """Return the ``x`` that :func:`through_lag` turns into ``y`` (its exact inverse)."""
+    if not lag > 0:
+        raise ValueError(f'a lag needs a positive time constant, not {lag}')
     y = np.asarray(y, dtype=np.float64)
     a = float(np.exp(-1.0 / lag))
     x = y.copy()
@@ -284,7 +287,7 @@ def propose_lag(shifts: np.ndarray, lags: np.ndarray, min_r2: float = MIN_LAG_R2
     A lag is proposed when the law through it explains at least ``min_r2`` and
     leaves at most ``1 / ratio`` of what the best shift leaves unexplained:
     R² is read as a share of variance, so a law that fits 0.99 where it fits
-    0.95 otherwise is told as well as one of 0.5 against 0.9.  Ties go to the
+    0.95 otherwise is told as well as one of 0.9 against 0.5.  Ties go to the
     shorter lag.
     """
     shifts = np.atleast_2d(np.asarray(shifts, dtype=np.float64))
@@ -336,10 +339,14 @@ def alignment(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     lag, lag_best, lag_top = (float(v[0]) for v in propose_lag(r2, lag_profile(op, pv, sp)))
     if lag:
         lag, lag_top = refine_lag(op, pv, sp, lag)
+    undo = UNDO_LAG if undo_lag is None else undo_lag
+    if lag and not undo and shift[0]:
+        # Named only, a lag must not cost the shift the record is read with without it.
+        return Alignment(int(shift[0]), given, float(top[0]), int(best[0]),
+                         lag_best=lag_best, r2_lag=lag_top)
     # A lag explains what no shift does; where it does not, a shift may.
     got = Alignment(0 if lag else int(shift[0]), given, float(top[0]), int(best[0]),
                     lag=lag, lag_best=lag_best, r2_lag=lag_top)
-    undo = UNDO_LAG if undo_lag is None else undo_lag
     return got.decline(LEAD) if lag and not undo else got
 
 
