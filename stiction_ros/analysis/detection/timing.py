@@ -50,8 +50,6 @@ whose PV is constant).
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 __all__ = ['Alignment', 'alignment', 'HELD', 'LAG_RATIO', 'lag_profile', 'LAGS', 'law_profile',
            'law_r2', 'LEAD', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose',
@@ -185,7 +183,13 @@ def through_lag(x: np.ndarray, lag: float) -> np.ndarray:
         raise ValueError(f'a lag needs a positive time constant, not {lag}')
     x = np.asarray(x, dtype=np.float64)
     a = float(np.exp(-1.0 / lag))
-    return lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])[0]
+    # A plain loop, not scipy.signal: the default analysis imports no scipy (test_dsp).
+    y = np.empty_like(x)
+    acc = x[0] if x.size else 0.0
+    for k, v in enumerate(x.tolist()):
+        acc = a * acc + (1.0 - a) * v
+        y[k] = acc
+    return y
 
 
 def undo_lag(y: np.ndarray, lag: float) -> np.ndarray:
@@ -316,6 +320,7 @@ def refine_lag(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     i = LAGS.index(lag)
     lo = LAGS[i - 1] if i else LAGS[0] / 2
     hi = LAGS[i + 1] if i + 1 < len(LAGS) else 1.5 * LAGS[-1]
+    from scipy.optimize import minimize_scalar   # only where a lag was found
     got = minimize_scalar(lambda v: -law_r2(op, pv, sp, 0, float(v)), bounds=(lo, hi),
                           method='bounded', options={'xatol': 0.02})
     near = round(float(got.x), 2)
