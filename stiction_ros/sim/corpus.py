@@ -13,19 +13,14 @@ So are two things a plant has that a linear PI loop lacks: an equal-percentage
 valve, whose loop gain grows as it opens, and on level loops a gap or
 error-squared controller, which lets the level swing; and a cycle passed on
 from upstream, which a healthy and a sticky valve's loop alike must carry.
-And an instrument effect the plant's exports show: in a quarter of the loops
-PV is exported through a first-order lag the controller did not see (the lag
-check, ``analysis.detection.timing``, finds one in most of the shared plant's
-flow loops; a PID with derivative action on PV reads the same).
 
 Time constants are drawn in samples (what a historian export shows) and
 converted to seconds.  Everything follows from the seed: ``draw_scenario``
 draws from ``default_rng(seed)`` and the characteristic, controller law and
 upstream cycle from ``default_rng([seed, 3])`` (added on 2026-11-29, so that
 every other draw stayed what it was; the cycle is drawn last in it, for the
-same reason) and the export's lag from ``default_rng([seed, 5])`` (added in
-the thirty-fifth session, likewise); ``simulate`` draws the signals (loads,
-set point, noise, faults) from ``default_rng([seed, 1])``.
+same reason), ``simulate`` draws the signals (loads, set point, noise, faults)
+from ``default_rng([seed, 1])``.
 """
 
 from dataclasses import asdict, dataclass
@@ -35,8 +30,8 @@ import numpy as np
 from stiction_ros.kernels.corpus import installed_flow, LAW_GAP, LAW_PI, LAW_SQUARED, \
     loop_matrix, min_damping, QUANTISED, run_corpus_loop
 from stiction_ros.models import create
-from stiction_ros.sim.corpus_signals import first_order_lag, loads, logu, measurement, pick, \
-    set_point, upstream_cycle
+from stiction_ros.sim.corpus_signals import loads, logu, measurement, pick, set_point, \
+    upstream_cycle
 from stiction_ros.sim.plant import TransferFunctionPlant
 
 LOOK_ALIKES = ('aggressive_tuning', 'load_cycle', 'integrating_cycle', 'backlash', 'quantised',
@@ -56,10 +51,6 @@ NONLINEAR_LAW = 0.3
 # Share of loops (both labels) that carry a cycle from upstream at a period
 # the analyzer judges (12 samples to a fifth of the record, at most 300).
 UPSTREAM_CYCLE = 0.25
-# Share of loops (both labels) whose exported PV went through a first-order lag
-# the controller did not see (a historian-side or display filter; a PID's
-# derivative on PV reads the same from OP, PV and SP), and its range in samples.
-PV_LAG, PV_LAGS = 0.25, (0.5, 10.0)
 LAWS = {'': LAW_PI, 'gap': LAW_GAP, 'squared': LAW_SQUARED}
 
 
@@ -99,7 +90,6 @@ class Scenario:
     cycle_phase: float = 0.0
     cycle_shape: str = ''
     cycle_lag: float = 1.0          # samples
-    pv_lag: float = 0.0             # samples; 0: PV exported as the controller read it
 
     def to_json(self) -> dict:
         """Return the scenario as a dict of plain JSON types."""
@@ -272,12 +262,7 @@ def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
     sc = _replace(sc, Kc=float(kc), Ti=float(kc / ki * ts))
     # Nobody runs a loop whose OP jitters by more than a few % from noise alone.
     sc = _replace(sc, noise_std=float(min(noise * pv_scale(sc), OP_JITTER / kc)))
-    sc = _draw_plant_extras(np.random.default_rng([seed, 3]), sc)
-    # A stream of its own (added on 2026-11-29, thirty-fifth session), so that
-    # every other draw stays what it was.
-    export = np.random.default_rng([seed, 5])
-    lagged, lag = export.random() < PV_LAG, logu(export, *PV_LAGS)
-    return _replace(sc, pv_lag=float(lag if lagged else 0.0))
+    return _draw_plant_extras(np.random.default_rng([seed, 3]), sc)
 
 
 def _draw_plant_extras(rng, sc):
@@ -425,8 +410,6 @@ def simulate(scenario: Scenario, load: np.ndarray | None = None, oversample: int
     if m > 1:
         for k in out:
             out[k] = out[k].reshape(n, m).mean(axis=1) if average else out[k][::m].copy()
-    if sc.pv_lag > 0.0:
-        out['pv'] = first_order_lag(out['pv'], sc.pv_lag)
     return {'t': np.arange(n) * ts, 'op': out['op'], 'pv': out['pv'], 'sp': out['sp'],
             'mv': out['mv']}
 

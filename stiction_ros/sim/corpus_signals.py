@@ -22,13 +22,7 @@ def pick(rng, options, p=None):
     return str(options[int(rng.choice(len(options), p=p))])
 
 
-def first_order_lag(x: np.ndarray, tau_samples: float) -> np.ndarray:
-    """
-    Return ``x`` through a first-order lag of ``tau_samples``, started at rest on ``x[0]``.
-
-    ``y[k] = a y[k-1] + (1 - a) x[k]``, ``a = exp(-1 / tau_samples)``: the
-    same filter the analyzer's lag check fits (``timing.through_lag``).
-    """
+def _filtered(x, tau_samples):
     a = math.exp(-1.0 / tau_samples)
     b, den = [1.0 - a], [1.0, -a]
     return signal.lfilter(b, den, x, zi=signal.lfilter_zi(b, den) * x[0])[0]
@@ -62,7 +56,7 @@ def upstream_cycle(sc, n: int) -> np.ndarray:
     if sc.cycle_amplitude <= 0.0:
         return np.zeros(n)
     cycle = sc.cycle_amplitude * wave(sc.cycle_shape, sc.cycle_period, sc.cycle_phase, n)
-    return first_order_lag(cycle, sc.cycle_lag)
+    return _filtered(cycle, sc.cycle_lag)
 
 
 def loads(rng, sc, n):
@@ -84,7 +78,7 @@ def loads(rng, sc, n):
         # The cycle is the condition this record is about: other loads stay smaller.
         load *= min(1.0, float(np.ptp(cycle)) / max(2.0 * float(np.std(load)), 1e-9))
         load += cycle
-    return first_order_lag(load - load[0], logu(rng, 0.3, 30.0))
+    return _filtered(load - load[0], logu(rng, 0.3, 30.0))
 
 
 def set_point(rng, sc, n):
@@ -107,7 +101,7 @@ def set_point(rng, sc, n):
             moves[at:] += rng.choice((-1.0, 1.0)) * logu(rng, *size)
     elif kind == 'remote':
         walk = np.cumsum(rng.standard_normal(n))
-        walk = first_order_lag(walk - walk[0], logu(rng, 2.0, 50.0))
+        walk = _filtered(walk - walk[0], logu(rng, 2.0, 50.0))
         moves = walk * (logu(rng, 0.5, 6.0) / max(float(np.std(walk)), 1e-9))
     return moves
 
