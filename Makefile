@@ -90,7 +90,8 @@ cnn: venv
 	$(PY) -m stiction_ros.cli.cnn $(CNN_ARGS)
 
 # Retrain the large network the detector's last step weighs in, in two steps.
-# cnn-large: 600 000 corpus seeds, 5 min on one H200 with 16 cores (hours on 2 cores)
+# cnn-large: 600 000 corpus seeds, 5-8 min on one H200 with 16 cores (hours on 2 cores;
+# epochs of 15 s in 2026-11-27, 26-30 s in 2026-11-29 on another lease)
 # (stiction_ros/resources/stiction_cnn_large_base.npz). cnn-large-tune: that network
 # trained on from its weights on 10 000 fresh seeds without the sticky records a
 # deadband explains, about 50 min on 2 cores (52 measured beside a make detector;
