@@ -91,11 +91,12 @@ cnn: venv
 
 # Retrain the large network the detector's last step weighs in, in two steps.
 # cnn-large: 600 000 corpus seeds, 5-8 min on one H200 with 16 cores (hours on 2 cores;
-# epochs of 15 s in 2026-11-27, 26-30 s in 2026-11-29 on another lease)
-# (stiction_ros/resources/stiction_cnn_large_base.npz). cnn-large-tune: that network
-# trained on from its weights on 10 000 fresh seeds without the sticky records a
-# deadband explains, about 50 min on 2 cores (52 measured beside a make detector;
-# stiction_cnn_large.npz, the one the detector reads). Then `make detector`.
+# epochs of 15 s in 2026-11-27, 26-30 s in 2026-11-29 and 22-31 s in 2026-11-30 on
+# other leases) (stiction_ros/resources/stiction_cnn_large_base.npz). cnn-large-tune:
+# that network trained on from its weights on 10 000 fresh seeds without the sticky
+# records a deadband explains, 11-52 min on 2 cores beside a make detector (11.5 in
+# 2026-11-30, 52 in 2026-11-29; stiction_cnn_large.npz, the one the detector reads).
+# Then `make detector`.
 cnn-large: venv
 	$(PY) -m pip install --quiet -r requirements/train.txt
 	$(PY) -m stiction_ros.cli.cnn --seeds 600000 --epochs 10 --batch 256 \
