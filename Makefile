@@ -74,7 +74,7 @@ shared-cycles: venv
 	  --json docs/shared_cycles.json --figure docs/figures/shared_cycles.png
 
 # Rebuild the learned stiction detector from simulated loops alone (fixed seeds):
-# stiction_ros/resources/stiction_detector.npz.  About 26-33 min on 2 cores from scratch
+# stiction_ros/resources/stiction_detector.npz.  About 22-33 min on 2 cores from scratch
 # (the figures of 7 500 simulated records, the slip footprints of their sticky records and
 # the large network's logits of both sets), 1-2 min once out/detector_cache holds them.
 detector: venv
@@ -94,8 +94,8 @@ cnn: venv
 # epochs of 15 s in 2026-11-27, 26-30 s in 2026-11-29 and 22-31 s in 2026-11-30 on
 # other leases) (stiction_ros/resources/stiction_cnn_large_base.npz). cnn-large-tune:
 # that network trained on from its weights on 10 000 fresh seeds without the sticky
-# records a deadband explains, 11-52 min on 2 cores beside a make detector (11.5 in
-# 2026-11-30, 52 in 2026-11-29; stiction_cnn_large.npz, the one the detector reads).
+# records a deadband explains, on 2 cores 11.4 min in 2026-11-30 and 52 in 2026-11-29,
+# each beside a make detector (stiction_cnn_large.npz, the one the detector reads).
 # Then `make detector`.
 cnn-large: venv
 	$(PY) -m pip install --quiet -r requirements/train.txt

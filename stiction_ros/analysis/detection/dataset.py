@@ -47,7 +47,7 @@ FOOTPRINT_WINDOW = 10
 # large networks stacked, 3900000-3901999 the limit-cycling refusal; they are spent.
 # 4000000-4001999 were the first drawn with equal-percentage valves and level
 # laws (spent), 4100000-4101999 the first with upstream cycles (spent),
-# 4200000-4201999 the large network tuned on them (spent), 4300000-4301999 the
+# 4200000-4201999 the large network tuned on them (spent), 4300000-4301999 (spent) the
 # small network retrained on the corpus as now drawn, and again the lag check as
 # shipped (named, not undone: the same model and answers); 4400000-4401999 scored
 # the detector retrained with the lag undone (not shipped; spent); 4500000-4501999,
