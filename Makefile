@@ -55,8 +55,8 @@ accuracy: venv
 
 # The verdict on simulated loops read with PV damped after the controller, skewed clocks,
 # historian compression and a coarser grid, beside the same loops as simulated
-# (docs/ROBUSTNESS.md; about 58 min on 2 cores: 3 426 s measured 2026-11-29 before the
-# lag check's threshold grid, about a minute more; 1 630 s on another host the day before).
+# (docs/ROBUSTNESS.md; about 40-58 min on 2 cores: 2 291 s measured 2026-11-30 with the
+# lag check, 3 426 s on 2026-11-29 before it, 1 630 s on another host the day before).
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
 	  --json docs/robustness.json
