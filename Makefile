@@ -55,7 +55,7 @@ accuracy: venv
 
 # The verdict on simulated loops read with PV damped after the controller, skewed clocks,
 # historian compression and a coarser grid, beside the same loops as simulated
-# (docs/ROBUSTNESS.md; about 40-58 min on 2 cores: 2 291 s measured 2026-11-30 with the
+# (docs/ROBUSTNESS.md; about 38-57 min on 2 cores: 2 291 s measured 2026-11-30 with the
 # lag check, 3 426 s on 2026-11-29 before it, 1 630 s on another host the day before).
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
@@ -63,12 +63,12 @@ robustness: venv
 
 # The verdict on loops the simulator never draws: equal-percentage valves tuned hot,
 # gap and error-squared level controllers, loops detuned past stability, controllers
-# run 3-10 times per historian sample (docs/PROBES.md; about 10 min on 2 cores).
+# run 3-10 times per historian sample (docs/PROBES.md; 6-10 min on 2 cores).
 probes: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.probes --markdown docs/PROBES.md --json docs/probes.json
 
 # A sticky loop's cycle carried into a healthy loop: does the batch analyzer's shared-cycle
-# view name the sticky one?  docs/SHARED_CYCLES.md, about 8 min on 2 cores.
+# view name the sticky one?  docs/SHARED_CYCLES.md, 3-7 min on 2 cores.
 shared-cycles: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.shared_cycles --markdown docs/SHARED_CYCLES.md \
 	  --json docs/shared_cycles.json --figure docs/figures/shared_cycles.png
