@@ -9,7 +9,7 @@ Hammerstein fit) with the model's probability, and the tree model alone.
 The large network's logit (four sign conventions, NumPy) is timed with its
 compiled convolution and with the einsum one it replaced (the same bits), and
 beside a network of twice its width and the same depth, random weights, for
-timing only: what a wider network (docs/DETECTION.md) would cost every analysis.
+timing only: what a wider network (docs/DETECTION_LOG.md) would cost every analysis.
 The Hammerstein fit's lag sums, most of its time, are timed on each record's
 regression (one valve path) as the fits compute them and as first written,
 row by row (the same bits, counted).  Last, the full Hammerstein S/J fit the

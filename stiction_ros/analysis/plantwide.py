@@ -3,9 +3,9 @@ Cycles at one period in several loops: which loop is the likely source, which on
 
 A sticky valve's cycle travels: through a vessel into the next unit, whose
 loop cycles at the same period with a good valve.  Read alone, that loop
-looks sticky too (DETECTION.md, section 5: on the fresh seeds 4100000- the
-healthy loops with an upstream cycle were flagged 50 times in 231, the
-others 59 in 675).
+looks sticky too (docs/DETECTION_LOG.md, "Upstream cycles in the corpus": on
+the fresh seeds 4100000- the healthy loops with an upstream cycle were
+flagged 50 times in 231, the others 59 in 675).
 Read together, loops that cycle at one period over the same hours may share
 one oscillation (Thornhill, Huang and Zhang 2003 group loops by period the
 same way), and then the source is the loop whose own valve explains it.

@@ -60,8 +60,8 @@ def markdown(study: dict) -> str:
             seen.add(r['probe'])
             lines.append(f"* **{r['probe']}**: {r['what']}.")
     lines += ['', 'On a healthy row every `stiction` is a wrong answer the model gave with a '
-              'probability of 0.75 or more; docs/DETECTION.md (section 5) says what is done '
-              'about each.', '']
+              'probability of 0.75 or more; docs/DETECTION_LOG.md ("Loops the simulator '
+              'never draws") says what was done about each.', '']
     return '\n'.join(lines)
 
 

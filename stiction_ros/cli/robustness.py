@@ -102,7 +102,7 @@ def markdown(study: dict) -> str:
     if study.get('lag_choice'):
         lines += lag_table(study['lag_choice'])
     lines += ['', 'What the rows mean for an engineer, and what was done about them: '
-              '[DETECTION.md](DETECTION.md), section 5.', '']
+              '[DETECTION_LOG.md](DETECTION_LOG.md), "Instruments and timing".', '']
     return '\n'.join(lines)
 
 

@@ -23,7 +23,7 @@ since 2026-11-27, fifteenth session; the large network was trained on
 without them, ``make cnn-large-tune``).  On the calibration seeds 225 of
 the 816 judged sticky records are deadband-like;
 the detector before this map called 178 of them stiction and flagged 49 of
-the 107 backlash valves, which look the same (docs/DETECTION.md, section 3).
+the 107 backlash valves, which look the same (docs/DETECTION_LOG.md).
 
 Only the simulated sets use this; a plant record has no true valve position.
 """

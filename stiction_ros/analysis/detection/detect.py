@@ -30,7 +30,7 @@ THRESHOLD = 0.5
 # An answer only when it is at least three times as likely as its opposite (at
 # even odds, as the map is calibrated): between these the evidence is
 # balanced, and a confident "no stiction" there would close a case that a
-# valve travel test should decide (docs/DETECTION.md, section 3).
+# valve travel test should decide (docs/DETECTION.md, section 3, "The band").
 BALANCED = (0.25, 0.75)
 # The answers the analyzer gives: (THRESHOLD, THRESHOLD) would be the forced choice.
 BAND = BALANCED
@@ -129,7 +129,8 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
         out.append(line)
         if not st.slips:
             # Beside a verdict that leans to no stiction these periods read as a
-            # contradiction; they are not one (docs/DETECTION.md, section 3).
+            # contradiction; they are not one (docs/DETECTION_LOG.md, "Sticky records
+            # that look like a deadband").
             out.append('no slip after any stuck period: a valve that stands still while OP '
                        'travels and then moves on without a jump is what a deadband (play in '
                        'the actuator or linkage) leaves as well as stiction, and OP and PV '

@@ -11,8 +11,8 @@ deadband-like sticky ones, a quarter of them carrying a cycle from upstream
 (``make cnn-large-tune``).  Alone it scores about
 what the trees do; a logistic regression
 on the two, fitted on the training seeds with the trees' scores out of fold
-(``train.fit_stack``), scores better than either (docs/DETECTION.md,
-section 3).  The isotonic calibration then maps the stacked score to a
+(``train.fit_stack``), scores better than either (docs/DETECTION_LOG.md,
+"The stack").  The isotonic calibration then maps the stacked score to a
 probability.
 
 The weights live in the tree model's header (``meta['stack']``, read by
@@ -40,7 +40,7 @@ LARGE_PATH = Path(__file__).resolve().parents[2] / 'resources' / 'stiction_cnn_l
 # over three 80 % windows of a simulated record the logit's standard deviation
 # is 0.27 (median; 0.67 at the 90th percentile), and a plant record's
 # probability moved by up to 0.40 when 10 % of each end was dropped.  The mean
-# of the four is steadier (docs/DETECTION.md, section 3).
+# of the four is steadier (docs/DETECTION_LOG.md, "The large network reads four views").
 VIEWS = ((0.0, 1.0), (0.0, 0.8), (0.1, 0.9), (0.2, 1.0))
 
 
