@@ -109,3 +109,22 @@ def test_flat_op_cannot_be_identified():
         identify(np.full(100, 40.0), np.full(100, 40.0))
     with pytest.raises(IdentifyError, match='unknown model'):
         given_fit(np.arange(10.0), np.arange(10.0), 'stenman', 1.0, 0.0)
+
+
+def test_an_exact_fit_reports_every_pair_that_fits_as_exactly():
+    # Noise-free MV from an OP that moves in 0.5 % steps: every S from 5.00 to
+    # 5.49 (and J with it) traces the same path, so no one of them is the
+    # answer; the 95 % range must hold them all, not the point found first.
+    rng = np.random.default_rng(3)
+    t = np.arange(3000)
+    op = 50 + 10 * np.sin(2 * np.pi * t / 400) + np.cumsum(rng.normal(0, 0.05, t.size))
+    op = np.round(op / 0.5) * 0.5
+    mv = create('kano', S=5.0, J=2.0).simulate(op, y0=50.0)
+    fit = identify(op, mv, 'kano')
+    assert fit.mse == 0.0
+    s_ax = np.round(np.arange(4.8, 5.61, 0.01), 2)
+    j_ax = np.round(np.arange(1.8, 2.61, 0.01), 2)
+    ii, jj = np.nonzero(ValveProblem('kano', op, mv).grid(s_ax, j_ax) == 0.0)
+    assert len(ii) > 1
+    assert fit.S_interval[0] <= s_ax[ii].min() and s_ax[ii].max() <= fit.S_interval[1]
+    assert fit.J_interval[0] <= j_ax[jj].min() and j_ax[jj].max() <= fit.J_interval[1]

@@ -234,14 +234,14 @@ class AnalyzeOptions:
 
     def _check_reports(self) -> None:
         # A report written over the recording, or over the other report, loses it.
-        flags = {'json_path': '--json', 'html_path': '--html'}
+        flags = {'json_path': 'the JSON report (--json)', 'html_path': 'the HTML report (--html)'}
         given = [(n, getattr(self, n)) for n in flags if getattr(self, n)]
         for name, path in given:
             if _same_file(path, self.input):
-                raise InputError(f'{name} ({flags[name]}) {path} is the recording itself: '
+                raise InputError(f'{flags[name]} {path} is the recording itself: '
                                  'writing the report would overwrite it; name another file')
             if Path(path).suffix.lower() in RECORDING_SUFFIXES and Path(path).exists():
-                raise InputError(f'{name} ({flags[name]}) {path} exists and looks like a '
+                raise InputError(f'{flags[name]} {path} exists and looks like a '
                                  'recording: the report would overwrite it; name a .json or '
                                  '.html file (a report is never given a recording suffix)')
         if len(given) == 2 and _same_file(given[0][1], given[1][1]):

@@ -132,8 +132,9 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
     dict
         The summary row: ``input``, ``ok``, then ``detected``, ``answer``,
         ``probability`` (OP/PV only), ``score`` (None where the record could not be
-        judged), ``fits``, ``summary`` (and ``why_not``, ``effect``, ``report``) or
-        ``error``; ``seconds``.
+        judged), ``fits``, ``summary``, ``warnings`` (what the input's reader
+        said, such as a bag that ends early; empty when nothing) (and
+        ``why_not``, ``effect``, ``report``) or ``error``; ``seconds``.
 
     """
     t0 = time.perf_counter()
@@ -159,7 +160,8 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         row.update(ok=True, detected=st['detected'], answer=st.get('answer'),
                    probability=st.get('probability'), score=st['score'] if judged else None,
                    fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
-                   summary=summary_line(report))
+                   summary=summary_line(report),
+                   warnings=list((report.get('input') or {}).get('warnings') or []))
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']
         # Always there (null when it does not apply): a script reads every row alike.

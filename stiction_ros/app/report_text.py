@@ -55,14 +55,18 @@ def summary_line(report: dict) -> str:
     Returns
     -------
     str
-        One line with the verdict and the fits, then indented evidence and,
-        after ``--explain``, the located and named mismatch, one per line.
+        One line with the verdict and the fits, then indented warnings about
+        the input (a file read only in part), the first two evidence lines
+        and, after ``--explain``, the located and named mismatch, one per line.
 
     """
     st = report['stiction']
     fits = '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                      for f in report['fits'])
     line = _verdict(report) + (f'; {fits}' if fits else '')
+    # A recording read only in part (a bag that ends early) says so in an audit too.
+    for warning in (report.get('input') or {}).get('warnings') or []:
+        line += f'\n  warning: {warning}'
     for ev in st.get('evidence', [])[:2]:
         line += f'\n  evidence: {ev}'
     if st.get('size_withheld'):

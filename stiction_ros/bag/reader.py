@@ -208,7 +208,8 @@ def read_bag(path: str | os.PathLike[str]) -> Bag:
         except (EOFError, ValueError) as err:
             n_file = state.count() - n_before
             if n_file == 0 and not state.channels and not state.orphans:
-                raise BagReadError(f'{file}: not a readable MCAP file ({_why(err)})') from None
+                raise BagReadError(f'{file}: not a readable MCAP file ({_why(err)}); no '
+                                   'message in it can be read: copy or record it again') from None
             complete = False
             state.warnings.append(
                 f'{file.name}: file ends early ({_why(err)}); read the {n_file} messages of '
@@ -493,4 +494,7 @@ def _pieces(read: Callable[[int], bytes], size: int, piece: int = 1 << 20) -> by
 
 def _why(err: BaseException) -> str:
     text = str(err).strip()
-    return f'{type(err).__name__}: {text}' if text else type(err).__name__
+    # The engineer reads what is wrong with the file, not which exception said so.
+    if isinstance(err, EOFError):
+        return f'cut short: {text}' if text else 'cut short'
+    return text or type(err).__name__

@@ -108,7 +108,17 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
         return f'{record_row(k, rows) * ts:.0f} s'
     out = []
     st = ev['stuck']
-    for a, b, travel in sorted(st.stuck, key=lambda s: -s[2])[:3]:
+    if st.stuck and not st.slips:
+        # Said before the periods: a batch row shows two lines, and stuck periods
+        # alone beside "no stiction" read as a contradiction; they are not one
+        # (docs/DETECTION_LOG.md, "Sticky records that look like a deadband").
+        out.append('no slip after any stuck period: a valve that stands still while OP '
+                   'travels and then moves on without a jump is what a deadband (play in '
+                   'the actuator or linkage) leaves as well as stiction, and OP and PV '
+                   'alone cannot tell the two apart; stuck periods alone do not make the '
+                   'answer, and a valve travel test tells')
+    # The three with the most OP travel, in the order they happened.
+    for a, b, travel in sorted(sorted(st.stuck, key=lambda s: -s[2])[:3]):
         out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled over {travel:.3g} '
                    "(OP's units, % of its range on most plants) while the valve proxy stayed "
                    'within its noise')
@@ -127,15 +137,6 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
                      'that the ramp cancels; a slip, or PV answering when OP turns, tells them '
                      'apart')
         out.append(line)
-        if not st.slips:
-            # Beside a verdict that leans to no stiction these periods read as a
-            # contradiction; they are not one (docs/DETECTION_LOG.md, "Sticky records
-            # that look like a deadband").
-            out.append('no slip after any stuck period: a valve that stands still while OP '
-                       'travels and then moves on without a jump is what a deadband (play in '
-                       'the actuator or linkage) leaves as well as stiction, and OP and PV '
-                       'alone cannot tell the two apart; stuck periods alone do not make the '
-                       'answer, and a valve travel test tells')
     for k, z in sorted(st.slips, key=lambda s: -s[1])[:3]:
         out.append(f'slip at {_t(k, ts)}: the valve proxy jumped {z:.1f} noise widths '
                    f'(no set-point step before it)')

@@ -62,7 +62,8 @@ def refuse_office_file(path: object, head: bytes) -> None:
 def decode(path: object, data: bytes) -> tuple[str, str | None]:
     """Return ``(text, note)`` of a text file's bytes; ``note`` says if not UTF-8."""
     if not data.strip():
-        raise InputError(f'{path}: empty file')
+        raise InputError(f'{path}: empty file (no bytes, or blanks only): nothing to read; '
+                         'export the recording again')
     for bom, codec in ((codecs.BOM_UTF16_LE, 'utf-16-le'), (codecs.BOM_UTF16_BE, 'utf-16-be')):
         if data.startswith(bom):
             try:
