@@ -324,3 +324,20 @@ def test_all_manual_historian_is_too_few_valid_samples(tmp_path):
     path = write_text(tmp_path / 'm.txt', historian_text(mode=dict.fromkeys(range(60), 0)))
     with pytest.raises(InputError, match=r'only 0 of 60 .*60 MODE = 0, not 1 \(manual\)'):
         load_record(path)
+
+
+def test_a_folder_run_keeps_the_warning_of_a_bag_read_in_part(loop, tmp_path):
+    # An audit of many recordings must not drop what one file's reader said:
+    # a bag cut short is analysed from its complete part, and the row says so.
+    from stiction_ros.app.analyze import AnalyzeOptions
+    from stiction_ros.app.batch import analyze_one
+    from stiction_ros.app.report_text import batch_row_text
+    bag = write_bag(tmp_path / 'cut', loop, chunk_size=1024)
+    mcap = bag / 'cut_0.mcap'
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:len(data) // 2])
+    row = analyze_one(bag, AnalyzeOptions(input=str(bag)))
+    assert row['ok'] and any('ends early' in w for w in row['warnings'])
+    assert '\n  warning: cut_0.mcap: file ends early' in batch_row_text(row)
+    whole = write_bag(tmp_path / 'whole', loop)
+    assert analyze_one(whole, AnalyzeOptions(input=str(whole)))['warnings'] == []

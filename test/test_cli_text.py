@@ -51,3 +51,11 @@ def test_analyzer_help_loads_nothing_of_the_analysis():
                          timeout=60)
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip().splitlines()[-1] == '[]', run.stdout[-300:]
+
+
+def test_a_node_describes_itself_in_plain_text():
+    from stiction_ros.nodes.run import help_text
+    from stiction_ros.nodes.valve_node import ValveNode
+    text = help_text(ValveNode, 'valve')
+    assert 'valve node: subscribes op' in text, text[:300]
+    assert '``' not in text and ':class:' not in text and '::\n' not in text

@@ -6,16 +6,10 @@ import json
 import os
 from pathlib import Path
 import platform
-import re
 import sys
 from typing import Callable
 
-_ROLE = re.compile(r':(?:mod|func|class|meth|data):`~?([^`]+)`')
-
-
-def plain(text: str) -> str:
-    """Return docstring text without reStructuredText markup (``code``, :mod:`x`)."""
-    return _ROLE.sub(r'\1', text).replace('``', '')
+from stiction_ros.app.docstrings import plain
 
 
 def description(doc: str | None) -> str:

@@ -38,7 +38,6 @@ from collections.abc import Callable, Sequence
 import faulthandler
 import gc
 import os
-import re
 import signal
 import sys
 import threading
@@ -50,6 +49,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import get_current_signal_handlers_options, install_signal_handlers
 from rclpy.signals import SignalHandlerOptions, uninstall_signal_handlers
+from stiction_ros.app.docstrings import plain
 from stiction_ros.models.base import ModelError
 from stiction_ros.nodes.exit_timer import exit_after
 from stiction_ros.nodes.params import help_entry
@@ -123,19 +123,13 @@ def params_help(nodes: Sequence[Any]) -> str:
     return '\n'.join(parts)
 
 
-def _plain(doc: str) -> str:
-    """Return a docstring as a terminal shows it: no reStructuredText roles or literals."""
-    doc = re.sub(r':[a-z]+:`~?([^`]+)`', lambda m: m.group(1).rsplit('.', 1)[-1], doc)
-    return doc.replace('``', '').replace('::\n', ':\n')
-
-
 def help_text(factory: Callable, prog: str, nodes: Sequence[Any] | None = None) -> str:
     """
     Return the executable's help: its module's docstring, its parameters, how to run it.
 
     ``nodes`` are the node classes the factory builds, when it is not one itself.
     """
-    doc = _plain((sys.modules[factory.__module__].__doc__ or '').strip())
+    doc = plain((sys.modules[factory.__module__].__doc__ or '').strip())
     nodes = nodes or ((factory,) if hasattr(factory, 'declared_params') else ())
     params = f'\n\n{params_help(nodes)}' if nodes else ''
     return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE] [--params-file FILE] '
