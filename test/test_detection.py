@@ -429,3 +429,22 @@ def test_an_answer_needs_odds_of_three_to_one():
     assert 'balanced' not in reason_of(0.8, BALANCED) + reason_of(0.1, BALANCED)
     # Just under an edge is not printed as the edge.
     assert 'probability of stiction 0.7499, between' in reason_of(0.7499, BALANCED)
+
+
+@pytest.mark.parametrize('lag_rows', [1, 2, 3])
+def test_pv_answering_a_set_point_step_is_no_slip(lag_rows):
+    # A fast flow loop follows its set point within a few rows: PV jumps, but
+    # as a response, not as a valve breaking free.  The centred change sees the
+    # jump rows before the step's own row, and must not call it a slip there.
+    rng = np.random.default_rng(7)
+    n, k = 600, 300
+    sp = np.where(np.arange(n) < k, 50.0, 52.0)
+    pv = 50.0 + 0.05 * rng.standard_normal(n)
+    pv[k + lag_rows:] += 2.0
+    op = 40.0 + 0.05 * rng.standard_normal(n)
+    op[k:] += 4.0
+    st = stuck_periods(op, pv, sp)
+    assert not [s for s in st.slips if k - 10 <= s[0] <= k + 10], st.slips
+    # The same jump with no set-point step is a slip.
+    st = stuck_periods(op, pv, np.full(n, 50.0))
+    assert [s for s in st.slips if k - 10 <= s[0] <= k + 10], st.slips

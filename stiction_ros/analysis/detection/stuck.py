@@ -175,7 +175,10 @@ def stuck_periods(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     still = np.abs(change) < STILL_SIGMAS * scale
     quiet = np.ones(n, dtype=bool)
     for k in set_point_steps(sp, robust_noise(pv)):
-        quiet[k:k + SP_QUIET] = False
+        # The change at a row spans the smoothed proxy SMOOTH rows either side,
+        # each a mean of SMOOTH rows, so a response to the step already shows
+        # SMOOTH + SMOOTH // 2 rows before the step's own row.
+        quiet[max(0, k - SMOOTH - SMOOTH // 2):k + SP_QUIET] = False
     res = StuckResult()
     travel_total = float(np.sum(np.abs(np.diff(ops)))) or 1e-12
     stuck_travel = 0.0
