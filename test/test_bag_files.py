@@ -102,6 +102,14 @@ def test_unreadable_inputs_are_clear_errors(tmp_path):
     junk.write_bytes(b'not an mcap file at all')
     with pytest.raises(BagReadError, match='not a readable MCAP'):
         read_bag(junk)
+    # Cut short before its first message: what is wrong and what to do, not an
+    # exception's name.
+    short = tmp_path / 'short.mcap'
+    whole = write(tmp_path / 'whole')
+    short.write_bytes(next(whole.glob('*.mcap')).read_bytes()[:100])
+    with pytest.raises(BagReadError, match='cut short.*copy or record it again') as err:
+        read_bag(short)
+    assert 'EOFError' not in str(err.value)
     write(tmp_path / 'taken', n=1)
     with pytest.raises(BagError, match='not empty'):
         BagWriter(tmp_path / 'taken')

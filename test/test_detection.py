@@ -157,6 +157,12 @@ def test_stuck_periods_without_a_slip_are_said_to_be_what_a_deadband_leaves_too(
     assert stuck['stuck_periods_s'] and not stuck['slips_s']
     assert any(line.startswith('no slip after any stuck period') and 'deadband' in line
                for line in d.evidence)
+    # Said before the periods it qualifies, which are listed in the order they happened.
+    first = [i for i, line in enumerate(d.evidence) if line.startswith('stuck period ')]
+    caveat = [i for i, line in enumerate(d.evidence) if line.startswith('no slip after')]
+    assert first and caveat[0] < first[0]
+    starts = [float(d.evidence[i].split()[2].split('-')[0].rstrip('s')) for i in first]
+    assert starts == sorted(starts)
     # A valve that slips says so, and not this.
     sticky = _flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.5}, 101)
     d = detect(sticky['op'], sticky['pv'], sticky['sp'], 1.0)

@@ -37,8 +37,8 @@ from stiction_ros.models.lags import first_order_pole
 
 KERNELS = {'kano': 0, 'choudhury': 1}
 CHI2_95_2DOF = 5.991464547107979
-# An MSE this small (% squared: an RMS error of 1e-6 % of travel) is an exact fit,
-# rounding apart; the 95 % region is then the pairs that fit as exactly.
+# An MSE this small against MV's squared travel (an RMS error of a millionth of it) is
+# an exact fit, rounding apart; the 95 % region is then the pairs that fit as exactly.
 EXACT_MSE = 1e-12
 
 
@@ -238,11 +238,13 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
     doubles while the region touches its edge (at most ``grow`` times), its
     grid never finer than ``resolution`` nor more than ``BOX_POINTS`` a side.
     """
-    if mse_min <= EXACT_MSE:
+    # In MV's own units squared, so that MV given in other units reads the same.
+    exact = EXACT_MSE * (float(np.ptp(problem.mv)) or 1.0) ** 2
+    if mse_min <= exact:
         # An exact fit has no noise to scale a likelihood region by: the region
         # is every pair that fits exactly too (noise-free MV is a noise-free
         # path, and on a 0.01 % grid several S and J often trace the same one).
-        sse_bound = EXACT_MSE * problem.n
+        sse_bound = exact * problem.n
     else:
         sse_bound = mse_min * problem.n * math.exp(CHI2_95_2DOF / problem.n) * (1 + 1e-12)
     w = half_width

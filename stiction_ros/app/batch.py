@@ -138,7 +138,7 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
 
     """
     t0 = time.perf_counter()
-    row = {'input': str(path), 'ok': False}
+    row = {'input': str(path), 'ok': False, 'warnings': []}
     if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
         # Listed so that it is not lost without a word; not read, so not a failure.
         row.update(skipped=True,

@@ -35,7 +35,7 @@ def detect_format(path: str | Path) -> str:
         return 'bag'
     head = read_bytes(path, 64)
     if not head.strip():
-        raise InputError(f'{path}: empty file (no bytes, or blanks only): nothing to read; '
+        raise InputError(f'{path}: empty file (no data in its first bytes): nothing to read; '
                          'export the recording again')
     if head.startswith(MCAP_MAGIC):
         return 'bag'
