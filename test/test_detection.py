@@ -454,3 +454,25 @@ def test_pv_answering_a_set_point_step_is_no_slip(lag_rows):
     # The same jump with no set-point step is a slip.
     st = stuck_periods(op, pv, np.full(n, 50.0))
     assert [s for s in st.slips if k - 10 <= s[0] <= k + 10], st.slips
+
+
+@pytest.mark.parametrize('lag_rows', [0, 1])
+@pytest.mark.parametrize('slope', [1.0, 3.0])
+def test_a_level_answering_a_set_point_step_is_no_slip(lag_rows, slope):
+    # A level's proxy is PV's smoothed slope, which reaches 3 rows further than
+    # PV itself: a level that turns at once to a new set point, by a hundred
+    # noise widths a row and more, shows its turn up to 10 rows before the
+    # step's row, and must not be called a slip there.
+    rng = np.random.default_rng(11)
+    n, k = 600, 300
+    sp = np.where(np.arange(n) < k, 50.0, 60.0)
+    pv = 50.0 + 0.01 * rng.standard_normal(n)
+    t = np.arange(n) - (k + lag_rows)
+    pv += np.where(t > 0, slope * t, 0.0)
+    op = 40.0 + 0.05 * rng.standard_normal(n)
+    op[k:] += 4.0
+    st = stuck_periods(op, pv, sp, integrating=True)
+    assert not [s for s in st.slips if k - 15 <= s[0] <= k + 15], st.slips
+    # The same turn with no set-point step is a slip.
+    st = stuck_periods(op, pv, np.full(n, 50.0), integrating=True)
+    assert [s for s in st.slips if k - 15 <= s[0] <= k + 15], st.slips

@@ -55,8 +55,9 @@ FOOTPRINT_WINDOW = 10
 # detector retrained on that corpus and the shipped one (not adopted; spent;
 # thirty-fifth session); 4600000-4601999 the large base trained on the corpus as
 # now drawn (thirty-sixth session; spent); 4700000-4701999 the detector rebuilt
-# after the set-point quiet window's fix (thirty-seventh session), the shipped
-# model's range.
+# after the set-point quiet window's fix (thirty-seventh session; spent);
+# 4800000-4801999 the rebuild after the level's quiet window (thirty-eighth
+# session), the shipped model's range.
 # (2000000-2599999 are the networks' corpora, 3200000-3209999 the large
 # network's second one, 3210000-3239999 its hard negatives; 3950000-3950299 and
 # 3960000-3960599 probed loops detuned past stability; 3970000-3970199 diagnosed
@@ -64,7 +65,7 @@ FOOTPRINT_WINDOW = 10
 # check.)  CALIBRATION grew from 100000-101499 on 2026-11-27.
 TRAIN = range(0, 4500)
 CALIBRATION = range(100_000, 103_000)
-TEST = range(4_700_000, 4_702_000)
+TEST = range(4_800_000, 4_802_000)
 
 
 def stiction_footprint(sc, rec: dict) -> float:

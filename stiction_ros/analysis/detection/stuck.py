@@ -18,6 +18,7 @@ differences), so nothing depends on the engineering units.
 """
 
 from dataclasses import dataclass, field
+import functools
 
 import numpy as np
 
@@ -140,6 +141,25 @@ def _still_segments(ms: np.ndarray, still: np.ndarray, band: float) -> list:
     return out
 
 
+@functools.cache
+def change_reach(integrating: bool) -> int:
+    """
+    Return how many rows before a step in PV the proxy's change already moves.
+
+    The change at a row is centred: it spans the smoothed proxy ``SMOOTH``
+    rows either side, each a mean of ``SMOOTH`` rows (7 rows back for PV
+    itself), and a level's proxy, a slope, reaches 3 rows further.  A PV
+    answering a set-point step shows that early, and is no slip there.
+    """
+    n = 64
+    step = np.zeros(n)
+    step[n // 2:] = 1.0
+    ms = smooth(valve_proxy(step, integrating))
+    h = SMOOTH
+    moved = np.flatnonzero(np.abs(ms[2 * h:] - ms[:-2 * h]) > 1e-12) + h
+    return int(n // 2 - moved[0])
+
+
 def proxy_change(pv: np.ndarray, integrating: bool) -> tuple[np.ndarray, float, float]:
     """
     Return the proxy's change over 2 ``SMOOTH`` samples, centred, and two noise scales.
@@ -174,11 +194,9 @@ def stuck_periods(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
             / max(np.subtract(*np.percentile(ops, [95, 5])), 1e-12))
     still = np.abs(change) < STILL_SIGMAS * scale
     quiet = np.ones(n, dtype=bool)
+    early = change_reach(integrating)
     for k in set_point_steps(sp, robust_noise(pv)):
-        # The change at a row spans the smoothed proxy SMOOTH rows either side,
-        # each a mean of SMOOTH rows, so a response to the step already shows
-        # SMOOTH + SMOOTH // 2 rows before the step's own row.
-        quiet[max(0, k - SMOOTH - SMOOTH // 2):k + SP_QUIET] = False
+        quiet[max(0, k - early):k + SP_QUIET] = False
     res = StuckResult()
     travel_total = float(np.sum(np.abs(np.diff(ops)))) or 1e-12
     stuck_travel = 0.0
