@@ -121,6 +121,9 @@ def test_csv_names_case_spaces_extra_columns_missing_cells_and_gaps(tmp_path):
 
 @pytest.mark.parametrize('text, match', [
     ('', 'empty file'),
+    (' \n' * 100, 'empty file'),
+    # Blank lines before the header are no empty file: the CSV is read.
+    ('\n' * 100 + 't,op\n0,1\n', 'only 1 data row'),
     ('clock,op\n0,1\n1,2\n', r"no time column .*columns: 'clock', 'op'; name it with "
      '--columns t=COLUMN'),
     ('t,pv,sp\n0,1,2\n1,2,3\n', r"no 'op' column .*columns: 't', 'pv', 'sp'"),

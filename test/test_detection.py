@@ -163,6 +163,11 @@ def test_stuck_periods_without_a_slip_are_said_to_be_what_a_deadband_leaves_too(
     assert first and caveat[0] < first[0]
     starts = [float(d.evidence[i].split()[2].split('-')[0].rstrip('s')) for i in first]
     assert starts == sorted(starts)
+    # Each says how far OP moved, and in what units, as the JSON's third number.
+    travels = [float(d.evidence[i].split('range of ')[1].split()[0]) for i in first]
+    by_travel = sorted((p[2] for p in stuck['stuck_periods_s']), reverse=True)[:len(first)]
+    assert sorted(travels) == pytest.approx(sorted(by_travel), rel=1e-2)
+    assert all("in OP's own units" in d.evidence[i] for i in first)
     # A valve that slips says so, and not this.
     sticky = _flow_loop({'model': 'kano', 'S': 3.0, 'J': 1.5}, 101)
     d = detect(sticky['op'], sticky['pv'], sticky['sp'], 1.0)

@@ -119,9 +119,9 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
                    'answer, and a valve travel test tells')
     # The three with the most OP travel, in the order they happened.
     for a, b, travel in sorted(sorted(st.stuck, key=lambda s: -s[2])[:3]):
-        out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP travelled over {travel:.3g} '
-                   "(OP's units, % of its range on most plants) while the valve proxy stayed "
-                   'within its noise')
+        out.append(f'stuck period {_t(a, ts)}-{_t(b, ts)}: OP moved through a range of '
+                   f"{travel:.3g} (in OP's own units, % of its span on most plants) while the "
+                   'valve proxy stayed within its noise')
     if st.stuck:
         # Integral action on a constant error ramps OP in a straight line; a
         # loop holding PV against a load that wanders has neither.

@@ -34,8 +34,8 @@ def detect_format(path: str | Path) -> str:
     if path.suffix.lower() == '.mcap':
         return 'bag'
     head = read_bytes(path, 64)
-    if not head.strip():
-        raise InputError(f'{path}: empty file (no data in its first bytes): nothing to read; '
+    if not head.strip() and not read_bytes(path).strip():
+        raise InputError(f'{path}: empty file (nothing but blanks): nothing to read; '
                          'export the recording again')
     if head.startswith(MCAP_MAGIC):
         return 'bag'
