@@ -314,6 +314,8 @@ def test_historian_with_gaps_in_its_stamps_is_placed_by_stamp(tmp_path):
     (lambda ls: [ls[0], ls[1], ls[2].replace('.MV', '.XX')] + ls[3:],
      r'no controller output column \(2411FIC20102.MV\)'),
     (lambda ls: ls[:5], 'no data rows'),
+    # Past 64 blank bytes it is still found to be a historian export, and told so.
+    (lambda ls: [''] * 40 + ls, r'40 blank line\(s\) before PROCESSDATA; .*delete the blank'),
 ])
 def test_bad_historian_gives_one_line_input_error(tmp_path, edit, match):
     lines = edit(historian_text().splitlines())

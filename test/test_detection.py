@@ -163,7 +163,8 @@ def test_stuck_periods_without_a_slip_are_said_to_be_what_a_deadband_leaves_too(
     assert first and caveat[0] < first[0]
     starts = [float(d.evidence[i].split()[2].split('-')[0].rstrip('s')) for i in first]
     assert starts == sorted(starts)
-    # Each says how far OP moved, and in what units, as the JSON's third number.
+    # Each says how far OP moved, and in what units, as the JSON's third number
+    # (the JSON keeps the first 20 periods; this record has fewer).
     travels = [float(d.evidence[i].split('range of ')[1].split()[0]) for i in first]
     by_travel = sorted((p[2] for p in stuck['stuck_periods_s']), reverse=True)[:len(first)]
     assert sorted(travels) == pytest.approx(sorted(by_travel), rel=1e-2)
@@ -442,7 +443,7 @@ def test_an_answer_needs_odds_of_three_to_one():
     assert 'probability of stiction 0.7499, between' in reason_of(0.7499, BALANCED)
 
 
-@pytest.mark.parametrize('lag_rows', [1, 2, 3])
+@pytest.mark.parametrize('lag_rows', [0, 1, 2, 3])
 def test_pv_answering_a_set_point_step_is_no_slip(lag_rows):
     # A fast flow loop follows its set point within a few rows: PV jumps, but
     # as a response, not as a valve breaking free.  The centred change sees the
@@ -461,18 +462,19 @@ def test_pv_answering_a_set_point_step_is_no_slip(lag_rows):
     assert [s for s in st.slips if k - 10 <= s[0] <= k + 10], st.slips
 
 
-@pytest.mark.parametrize('lag_rows', [0, 1])
-@pytest.mark.parametrize('slope', [1.0, 3.0])
+@pytest.mark.parametrize('lag_rows', [0, 1, 2])
+@pytest.mark.parametrize('slope', [1.0, 10.0])
 def test_a_level_answering_a_set_point_step_is_no_slip(lag_rows, slope):
     # A level's proxy is PV's smoothed slope, which reaches 3 rows further than
     # PV itself: a level that turns at once to a new set point, by a hundred
     # noise widths a row and more, shows its turn up to 10 rows before the
-    # step's row, and must not be called a slip there.
+    # step's row, and must not be called a slip there.  (With no lag PV
+    # moves at the step's own row, as a clock skew of a row can show it.)
     rng = np.random.default_rng(11)
     n, k = 600, 300
     sp = np.where(np.arange(n) < k, 50.0, 60.0)
     pv = 50.0 + 0.01 * rng.standard_normal(n)
-    t = np.arange(n) - (k + lag_rows)
+    t = np.arange(n) - (k - 1 + lag_rows)
     pv += np.where(t > 0, slope * t, 0.0)
     op = 40.0 + 0.05 * rng.standard_normal(n)
     op[k:] += 4.0

@@ -151,7 +151,7 @@ def change_reach(integrating: bool) -> int:
     itself), and a level's proxy, a slope, reaches 3 rows further.  A PV
     answering a set-point step shows that early, and is no slip there.
     """
-    n = 64
+    n = 16 * SMOOTH      # long enough that the edges never reach the step
     step = np.zeros(n)
     step[n // 2:] = 1.0
     ms = smooth(valve_proxy(step, integrating))
@@ -194,6 +194,8 @@ def stuck_periods(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
             / max(np.subtract(*np.percentile(ops, [95, 5])), 1e-12))
     still = np.abs(change) < STILL_SIGMAS * scale
     quiet = np.ones(n, dtype=bool)
+    # PV answers at the step's row at the earliest; its centred change shows
+    # that many rows before it.
     early = change_reach(integrating)
     for k in set_point_steps(sp, robust_noise(pv)):
         quiet[max(0, k - early):k + SP_QUIET] = False

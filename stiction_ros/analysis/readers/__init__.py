@@ -34,9 +34,12 @@ def detect_format(path: str | Path) -> str:
     if path.suffix.lower() == '.mcap':
         return 'bag'
     head = read_bytes(path, 64)
-    if not head.strip() and not read_bytes(path).strip():
-        raise InputError(f'{path}: empty file (nothing but blanks): nothing to read; '
-                         'export the recording again')
+    if not head.strip():
+        # Blank lines before the data: the format is in the first bytes that are not blank.
+        head = read_bytes(path).lstrip()[:64]
+        if not head:
+            raise InputError(f'{path}: empty file (no bytes, or blanks only): nothing to '
+                             'read; export the recording again')
     if head.startswith(MCAP_MAGIC):
         return 'bag'
     refuse_office_file(path, head)

@@ -46,6 +46,12 @@ def read_historian_record(path, text, columns=None):
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
+    blank = next((i for i, line in enumerate(lines) if line.strip()), 0)
+    if blank:
+        # The header's lines are read by their numbers, and so are the rows
+        # an error names: refused rather than counted from somewhere else.
+        raise InputError(f'{path}: {blank} blank line(s) before PROCESSDATA; a historian '
+                         'export starts with it on line 1: delete the blank lines')
     if len(lines) < 3:
         raise InputError(f'{path}: historian export of {len(lines)} line(s); it needs 5 header '
                          'lines, then the data')
