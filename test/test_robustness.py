@@ -56,6 +56,15 @@ def test_swinging_door_lines_never_miss_a_sample_by_more_than_the_deviation():
         swinging_door(x, -1.0)
 
 
+def test_a_trend_without_set_point_keeps_none_through_shifts_and_coarser_grids():
+    t = _trend()
+    t = type(t)(t.op, t.pv, None, t.sample_time)
+    s, e = shift_pv(t, 2), every(t, 2)
+    assert s.sp is None and e.sp is None
+    np.testing.assert_array_equal(s.pv - 100.0, s.op - 2)
+    assert len(e.op) == len(e.pv) == 25
+
+
 def test_every_kth_row_multiplies_the_sample_time():
     t = every(_trend(51), 2)
     assert len(t.op) == 26 and t.sample_time == 20.0

@@ -15,11 +15,11 @@ from scipy.signal import lfilter
 
 @dataclass(frozen=True)
 class Trend:
-    """OP, PV and SP as exported, with their sample time in seconds."""
+    """OP, PV and SP as exported, with their sample time in seconds (SP None: not exported)."""
 
     op: np.ndarray
     pv: np.ndarray
-    sp: np.ndarray
+    sp: np.ndarray | None
     sample_time: float
 
 
@@ -53,10 +53,11 @@ def shift_pv(t: Trend, samples: int) -> Trend:
     n = len(t.op)
     if abs(k) >= n:
         raise ValueError(f'a shift of {k} samples leaves nothing of {n}')
+    sp = t.sp
     if k > 0:   # row i shows OP of i and PV of i - k
-        return Trend(t.op[k:], t.pv[:n - k], t.sp[:n - k], t.sample_time)
+        return Trend(t.op[k:], t.pv[:n - k], None if sp is None else sp[:n - k], t.sample_time)
     k = -k
-    return Trend(t.op[:n - k], t.pv[k:], t.sp[k:], t.sample_time)
+    return Trend(t.op[:n - k], t.pv[k:], None if sp is None else sp[k:], t.sample_time)
 
 
 def swinging_door(x: np.ndarray, deviation: float) -> np.ndarray:
@@ -103,4 +104,4 @@ def every(t: Trend, k: int) -> Trend:
     """Return every ``k``-th row of ``t`` (an export on a coarser grid)."""
     if k < 1:
         raise ValueError(f'keep every k-th row needs k of 1 or more, not {k}')
-    return Trend(t.op[::k], t.pv[::k], t.sp[::k], t.sample_time * k)
+    return Trend(t.op[::k], t.pv[::k], None if t.sp is None else t.sp[::k], t.sample_time * k)

@@ -6,7 +6,8 @@ timing, not friction.  Each simulated record of a seed range is read by the
 analyzer's own path (:func:`detect`) as simulated and again under each
 distortion of :data:`CONDITIONS`: PV damped after the controller read
 it (on the lag check's grid and off it, rounded after the filter), tags
-skewed in time, swinging-door compression, a coarser export grid.
+skewed in time, swinging-door compression, a coarser export grid, the set
+point left out of the export.
 The valve is the same in every condition, so a change of answer is the
 instrument's doing.
 
@@ -79,6 +80,10 @@ def _coarse_late(t: Trend, noise: float) -> Trend:
     return shift_pv(every(t, 2), 1)
 
 
+def _no_set_point(t: Trend, noise: float) -> Trend:
+    return Trend(t.op, t.pv, None, t.sample_time)
+
+
 # Each condition: (name, what it stands for, its distortion, the rows it makes PV
 # late against OP: the skew the clock check should find, 0 for none).
 CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
@@ -99,6 +104,8 @@ CONDITIONS: tuple[tuple[str, str, Distortion, int], ...] = (
     ('PV late 1', 'PV and SP 1 row later than OP', _late_one, 1),
     ('every second row, PV late 1', 'one row in two, then PV and SP 1 row later than OP (the '
      "controller's law holds only roughly on the coarser grid)", _coarse_late, 1),
+    ('no set point', 'OP and PV exported without SP: the analyzer stands the mean PV in for '
+     'it, as for any record without one (no training record lacks it)', _no_set_point, 0),
 )
 
 
