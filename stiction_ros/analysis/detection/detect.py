@@ -36,6 +36,11 @@ BALANCED = (0.25, 0.75)
 BAND = BALANCED
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
 VOTERS = ('horch', 'he_curve_fit', 'hos_pv_op', 'yamashita', 'slip_events')
+# Every training record had its set point; the user should know what its absence costs.
+NO_SET_POINT = ('no set point in the record: the mean PV stands in for it, which no training '
+                'record needed (each had its SP), so the answer is less sure than with SP '
+                '(docs/ROBUSTNESS.md, "no set point"), and whether OP acts on the error at '
+                'all cannot be checked; export SP with OP and PV')
 # A stuck period's OP this straight, on an error held this many standard
 # errors off zero, is the pattern a steady load drift shares with a stuck valve.
 RAMP_R2 = 0.9
@@ -179,6 +184,8 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     # below names rows of the record as given, not of the fresh rows read.
     op, pv, sp, held = drop_held(op, pv, sp)
     holds = {'held_rows': held.count} if held.count else {}
+    if sp is None:
+        holds['set_point_given'] = False
     judge = holds_judgeable(held, sample_time)
     if judge.ok:
         judge = interpolated.lines_judgeable(pv)
@@ -207,6 +214,9 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
             lines.append(skew.describe(sample_time))
         else:
             lines.insert(0, skew.describe(sample_time))
+    if sp is None:
+        # A caveat on everything read, after the findings.
+        lines.append(NO_SET_POINT)
     lerped = interpolated.interpolated_rows(op, pv)
     if lerped.any():
         # Read as they are (a fair guess of the trend), but named: the noise reads low.
