@@ -305,8 +305,8 @@ def test_historian_with_gaps_in_its_stamps_is_placed_by_stamp(tmp_path):
 @pytest.mark.parametrize('edit, match', [
     (lambda ls: ls[:7] + [ls[7].rsplit('\t', 1)[0]] + ls[8:],
      r'line 8 has 8 columns; line 3 names 9'),
-    (lambda ls: ls[:9] + [ls[9].replace('\t100\t', '\tbad\t', 1)] + ls[10:],
-     r"line 10, column 4 \(2411FIC20102.SV\): 'bad' is not a number"),
+    (lambda ls: ls[:9] + [ls[9].replace('\t100\t', '\t1O0\t', 1)] + ls[10:],
+     r"line 10, column 4 \(2411FIC20102.SV\): '1O0' is not a number"),
     (lambda ls: ls[:6] + [ls[6].replace('2024-06-09', '09/06/2024')] + ls[7:],
      r"line 7: time stamp '09/06/2024 07:50:10' does not match yyyy-MM-dd HH:mm:ss"),
     (lambda ls: ls[:6] + [ls[7], ls[6]] + ls[8:], r'line 8: time stamp .* is before'),
@@ -323,6 +323,17 @@ def test_bad_historian_gives_one_line_input_error(tmp_path, edit, match):
     with pytest.raises(InputError, match=match) as err:
         load_record(path)
     assert str(err.value).startswith(str(path)) and '\n' not in str(err.value)
+
+
+def test_a_historians_word_for_a_missing_value_is_one_in_its_own_export_too(tmp_path):
+    lines = historian_text().splitlines()
+    lines[9] = lines[9].replace('\t100\t', '\tI/O Timeout\t', 1)
+    lines[12] = lines[12].replace('\t100\t', '\tBad\t', 1)
+    rec = load_record(write_text(tmp_path / 'w.txt', '\r\n'.join(lines) + '\r\n'))
+    # Rows 10 and 13 of the file are samples 4 and 7; only their SP is missing.
+    assert np.isnan(rec.signals['sp'][[4, 7]]).all() and np.isfinite(rec.signals['pv']).all()
+    assert ("2411FIC20102.SV: 2 cells marked bad ('I/O Timeout', 'Bad') read as missing "
+            'values') in rec.notes
 
 
 def test_all_manual_historian_is_too_few_valid_samples(tmp_path):

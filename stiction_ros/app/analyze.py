@@ -314,6 +314,13 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     say(f'{record.samples} samples at {record.sample_time:g} s'
         + (f' ({sampling})' if sampling else '') + ', signals '
         f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
+    warned = set(record.source.get('warnings') or [])
+    for note in record.notes:
+        # How the file was read (a column ignored, a word read as missing, a row count
+        # that disagrees) decides what was analysed; exclusions and a damaged file's
+        # warnings have their own lines.
+        if not note.startswith('excluded ') and note not in warned:
+            say(f'note: {note}')
     analysis = analyze(record, pipeline_options,
                        progress=SearchSteps(record, say))
     report = analysis.report

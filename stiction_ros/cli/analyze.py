@@ -87,9 +87,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--window', nargs=2, type=float, metavar=('T0', 'T1'),
                    help='analyse only T0 <= t <= T1, seconds from the start of the record')
     p.add_argument('--namespace', help='namespace of the loop topics in a bag, e.g. /loop1')
-    p.add_argument('--columns', metavar='SIGNAL=COLUMN,...',
+    p.add_argument('--columns', metavar='SIGNAL=COLUMN,...', action='append',
                    help='which CSV or historian columns hold t, op, mv, pv, sp where their '
-                        'names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp')
+                        'names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp '
+                        '(given more than once, all of them count)')
     p.add_argument('--loop-type', default='auto', choices=LOOP_TYPES,
                    help='auto: integrating when the tag names a level loop (LIC)')
     p.add_argument('--detector', metavar='FILE', default=None,
@@ -137,6 +138,9 @@ def options_from_args(args: argparse.Namespace) -> AnalyzeOptions:
     given = vars(args)
     names = {f.name for f in dataclasses.fields(AnalyzeOptions)}
     kwargs = {k: v for k, v in given.items() if k in names}
+    if isinstance(kwargs.get('columns'), list):
+        # --columns op=A --columns pv=B is one list; a signal named twice is refused.
+        kwargs['columns'] = ','.join(kwargs['columns'])
     if 'no_hammerstein' in given:
         kwargs['hammerstein'] = not given['no_hammerstein']
     return AnalyzeOptions(**kwargs)

@@ -80,6 +80,10 @@ def _verdict(report: dict) -> list:
                f'calibrated probability is at or above {num(DETECTOR_BAND[1])}, no stiction '
                f'below {num(DETECTOR_BAND[0])}, and cannot tell between, where the evidence '
                'is balanced (an answer needs odds of 3:1).')
+    elif st.get('detector') is not None:
+        # Not judged: "score 0" would read as "certainly no stiction".
+        strength = 'not judged, so no probability'
+        how = ''
     else:
         strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
         how = ''

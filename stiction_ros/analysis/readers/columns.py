@@ -8,15 +8,15 @@ optional unit or zone in brackets or after an underscore (``Time (s)``,
 or joined to a ``time`` column of times of day.
 
 Signals: ``op``, ``mv``, ``pv``, ``sp`` exactly (any case, a unit in
-brackets allowed), or a tag with the controller block's parameter after
-``.``, ``_``, ``:``, ``/``, ``-`` or a space: ``FIC101.OP`` is op,
-``FIC101.PV`` pv, ``FIC101.SP`` and ``FIC101.SV`` sp, ``FIC101.MV`` mv
-(the valve position, as in this package) unless nothing is op: then it is
-the controller output, as DCS historians name it (historian.py reads
-``<TAG>.MV`` so).  An exact name beats a tag.  Where two tags could be one
-signal, the one of op's tag is taken; else the refusal names them and the
-``--columns`` fix.  ``columns`` (``--columns op=FIC101.OP,t=Zeit``)
-overrides all of this for the signals it names.
+brackets allowed; ``Setpoint`` or ``Set point`` is sp too), or a tag with
+the controller block's parameter after ``.``, ``_``, ``:``, ``/``, ``-`` or
+a space: ``FIC101.OP`` is op, ``FIC101.PV`` pv, ``FIC101.SP``, ``FIC101.SV``
+and ``FIC101.Setpoint`` sp, ``FIC101.MV`` mv (the valve position, as in this
+package) unless nothing is op: then it is the controller output, as DCS
+historians name it (historian.py reads ``<TAG>.MV`` so).  An exact name
+beats a tag.  Where two tags could be one signal, the one of op's tag is
+taken; else the refusal names them and the ``--columns`` fix.  ``columns``
+(``--columns op=FIC101.OP,t=Zeit``) overrides all of this for the signals it names.
 """
 
 from dataclasses import dataclass, field
@@ -31,7 +31,9 @@ TIME_NAMES = ('t', 'time', 'timestamp', 'time stamp', 'datetime', 'date time', '
               'zeit', 'zeitstempel')
 # A long export names the tag of each row in one of these, its value in 'value'.
 LONG_TAGS = ('tag', 'tagname', 'tag name', 'tag_name', 'name', 'point', 'pointname')
-SUFFIXES = {'op': 'op', 'pv': 'pv', 'sp': 'sp', 'sv': 'sp', 'mv': 'mv'}
+SUFFIXES = {'op': 'op', 'pv': 'pv', 'sp': 'sp', 'sv': 'sp', 'mv': 'mv', 'setpoint': 'sp'}
+# Whole names that mean a signal besides its own short name.
+ALIASES = {'setpoint': 'sp', 'set point': 'sp', 'set_point': 'sp', 'set-point': 'sp'}
 UNIT = re.compile(r'(?P<base>.*?)\s*[\(\[](?P<unit>[^\)\]]*)[\)\]]')
 TAG = re.compile(r'(?P<tag>.*\S)\s*[._:/\\ -]\s*(?P<part>[A-Za-z]+)')
 # Column lists in messages stop after this many names.
@@ -89,8 +91,8 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
     for i, (base, _) in enumerate(keys):
         if i in taken:
             continue
-        if base in SIGNALS:
-            candidates[base].append((0, i))
+        if base in SIGNALS or base in ALIASES:
+            candidates[ALIASES.get(base, base)].append((0, i))
             continue
         m = TAG.fullmatch(base)
         if m and m['part'] in SUFFIXES:

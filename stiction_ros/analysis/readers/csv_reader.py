@@ -11,7 +11,10 @@ the header uses most.  With ``;`` or tab between cells, a decimal comma
 write it.  Row numbers in messages are the file's line numbers, as a
 spreadsheet shows them (the header is row 1).  An empty cell, ``nan``,
 ``inf`` or a historian's word for a bad value (``No Data``, ``I/O Timeout``,
-``#N/A``) is a missing value (NaN, noted); any other text is an error.
+``#N/A``) is a missing value (NaN, noted); any other text is an error.  A
+units row and a description row under the header (no digit in the time cell,
+no number among the signals, data after them) are skipped, and said so;
+rows whose time falls on every row (a newest-first export) are read in reverse.
 
 Rows on one sample grid are placed on it, and a sample without a row is a
 gap.  Rows that are not (a historian's raw values, stored when they change;
@@ -20,6 +23,7 @@ linear interpolation between stored values (align.py says why).
 """
 
 import csv
+from dataclasses import replace
 from datetime import datetime, timedelta
 import re
 
@@ -35,7 +39,8 @@ BAD_WORDS = frozenset([
     'no data', 'bad', 'bad input', 'bad data', 'bad quality', 'i/o timeout', 'shutdown',
     'comm fail', 'scan off', 'out of serv', 'calc failed', 'pt created', 'configure',
     'over range', 'under range', 'intf shut', 'no sample', 'no good data', 'null', 'none',
-    'n/a', '#n/a', '#value!', '#div/0!', '#ref!', '#num!', '#name?', '#null!'])
+    'n/a', '#n/a', '#value!', '#div/0!', '#ref!', '#num!', '#name?', '#null!', '<null>',
+    '-', '--', '---', '?'])
 DECIMAL_COMMA = re.compile(r'[+-]?(?:\d{1,3}(?:\.\d{3})+|\d*),\d+(?:[eE][+-]?\d+)?')
 # Rows on one grid that cover fewer of its samples than this were stored on change,
 # not logged every sample (a logger that lost a tenth of its rows is rare; a
@@ -52,7 +57,7 @@ class _Cells:
     """Read the cells of one file as numbers; count decimal commas and words for bad."""
 
     def __init__(self, path, delim):
-        self.path, self.comma_ok = path, delim != ','
+        self.path, self.comma_ok, self.delim = path, delim != ',', delim
         self.commas, self.comma_example, self.comma_whole = 0, None, True
         self.bad = {}
 
@@ -118,6 +123,7 @@ def read_csv_record(path, text, columns=None):
     if not rows:
         raise InputError(f'{path}: a header row but no data')
     nos = [no for no, _ in lines[1:]]
+    rows, nos, label_notes = _skip_label_rows(rows, nos, cols)
     for no, cells in zip(nos, rows):
         while len(cells) > len(header) and not cells[-1].strip():
             cells.pop()                  # a trailing delimiter, as some exports end rows
@@ -127,6 +133,11 @@ def read_csv_record(path, text, columns=None):
             raise InputError(f'{path}: row {no} has {len(cells)} cells; the header has '
                              f'{len(header)}{hint}')
     reader = _Cells(path, delim)
+    if _newest_first(path, header, cols, rows, nos, reader):
+        # Some historians' web exports list the newest row first.
+        rows, nos = rows[::-1], nos[::-1]
+        label_notes.append('rows run newest first (time falls on every row): read oldest '
+                           'first')
     stamps, notes = _time(path, header, cols, rows, nos, reader)
     values, stored, marked = {}, {}, {}
     for name, c in cols.signals.items():
@@ -134,9 +145,32 @@ def read_csv_record(path, text, columns=None):
                                  for no, cells in zip(nos, rows)], dtype=np.float64)
         stored[name] = np.array([bool(cells[c].strip()) for cells in rows])
         marked[name] = sum(reader.bad.get(header[c], {}).values())
-    notes = cols.notes + notes + reader.notes()
+    notes = label_notes + cols.notes + notes + reader.notes()
     return _on_grid(path, stamps, (values, stored, marked), cols.ignored, notes,
                     {s: header[i] for s, i in cols.signals.items()})
+
+
+def _skip_label_rows(rows, nos, cols):
+    """Return rows and their numbers without the units or description rows under the header."""
+    used = [cols.time, *cols.signals.values()]
+
+    def labels(cells):
+        # No digit in the time cell and no number among the signals: '', '%', 'kg/h'.
+        got = [cells[i].strip() if i < len(cells) else '' for i in used]
+        return (not any(ch.isdigit() for ch in got[0])
+                and not any(_is_number(c) or DECIMAL_COMMA.fullmatch(c) for c in got[1:]))
+
+    # A units row and a description row at most, then data.
+    k = 0
+    while k < min(3, len(rows)) and labels(rows[k]):
+        k += 1
+    if not 0 < k <= 2 or k == len(rows):
+        return rows, nos, []
+    notes = []
+    for no, cells in zip(nos[:k], rows[:k]):
+        shown = ', '.join(repr(c.strip()) for c in cells if c.strip()) or 'empty cells'
+        notes.append(f'row {no} read as units or descriptions, not data ({shown[:80]})')
+    return rows[k:], nos[k:], notes
 
 
 def _parse(path, lines, delim):
@@ -147,7 +181,21 @@ def _parse(path, lines, delim):
         raise InputError(f'{path}: not a readable CSV ({err})') from None
 
 
-def _time(path, header, cols, rows, nos, reader):
+def _newest_first(path, header, cols, rows, nos, reader):
+    """Return whether the time column falls on every row (a newest-first export)."""
+    if len(rows) < 3:
+        return False
+    try:
+        # A copy: reading the stamps notes an unused date column in ``ignored``.
+        probe = replace(cols, ignored=list(cols.ignored))
+        t = _time(path, header, probe, rows, nos, _Cells(path, reader.delim), check=False)
+    except InputError:
+        return False
+    steps = np.diff(t[0].seconds)
+    return bool(np.all(steps < 0))
+
+
+def _time(path, header, cols, rows, nos, reader, check=True):
     name = header[cols.time]
     cells = [r[cols.time] for r in rows]
     notes = []
@@ -163,6 +211,8 @@ def _time(path, header, cols, rows, nos, reader):
                          lambda no, text: reader.number(no, name, text), reader.is_number)
     stamps.name = name
     t = stamps.seconds
+    if not check:
+        return stamps, notes
     bad = np.flatnonzero(~np.isfinite(t))
     if len(bad):
         raise InputError(f'{path}: row {nos[bad[0]]}: {name} is {_cell(cells[bad[0]])}; every '

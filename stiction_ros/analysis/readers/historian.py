@@ -10,7 +10,9 @@ publisher's own settings; then one row per sample.  The historian's
 
 Exclusions: a sample whose MODE is not 1, or whose MODE is flagged bad, is
 excluded but keeps its values; a value whose flag (``bOpOFL``, ``bPvOFL``,
-``bSpOFL``) is set becomes NaN.  Either way the sample is not valid.
+``bSpOFL``) is set becomes NaN.  Either way the sample is not valid.  A
+historian's word for a value it does not have (``I/O Timeout``, ``Bad``:
+the CSV reader's list) is a missing value, noted; any other text is an error.
 
 When the file has the rows line 2 announces and each stamp is within one
 period of its row's grid instant, row ``i`` is sample ``i``: some exports
@@ -23,6 +25,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 from stiction_ros.analysis.readers import align
+from stiction_ros.analysis.readers.csv_reader import BAD_WORDS
 from stiction_ros.analysis.record import assemble, InputError
 
 ROLES = {'MV': 'op', 'OP': 'op', 'PV': 'pv', 'SV': 'sp', 'SP': 'sp', 'MODE': 'mode'}
@@ -73,7 +76,7 @@ def read_historian_record(path, text, columns=None):
     while first_row < min(5, len(lines)) and _stamp(_cells(lines[first_row])[0], pyfmt) is None:
         first_row += 1
     used = [roles[r] for r in roles] + [flags[f] for f in flags]
-    stamps, line_nos, data = _rows(path, lines, first_row, columns, pyfmt, fmt, used)
+    stamps, line_nos, data = _rows(path, lines, first_row, columns, pyfmt, fmt, used, notes)
     if not len(stamps):
         raise InputError(f'{path}: no data rows after the header')
     rel = np.array([(s - start).total_seconds() for s in stamps])
@@ -163,9 +166,10 @@ def _roles(path, columns, tag, given):
     return roles, flags, notes
 
 
-def _rows(path, lines, first_row, names, pyfmt, fmt, used):
+def _rows(path, lines, first_row, names, pyfmt, fmt, used, notes):
     ncols = len(names)
     stamps, line_nos, data = [], [], [[] for _ in used]
+    bad: dict = {}
     for no, line in enumerate(lines[first_row:], start=first_row + 1):
         if not line.strip():
             continue
@@ -189,8 +193,17 @@ def _rows(path, lines, first_row, names, pyfmt, fmt, used):
             try:
                 data[j].append(float(text) if text else np.nan)
             except ValueError:
-                raise InputError(f'{path}: line {no}, column {i + 2} ({names[i]}): '
-                                 f'{text[:40]!r} is not a number') from None
+                if text.lower() not in BAD_WORDS:
+                    raise InputError(f'{path}: line {no}, column {i + 2} ({names[i]}): '
+                                     f'{text[:40]!r} is not a number') from None
+                # The historian's word for a value it does not have, as in a CSV.
+                data[j].append(np.nan)
+                words = bad.setdefault(names[i], {})
+                words[text] = words.get(text, 0) + 1
+    for name, words in bad.items():
+        count = sum(words.values())
+        notes.append(f'{name}: {count} cell' + ('s' if count > 1 else '') + ' marked bad ('
+                     + ', '.join(repr(w) for w in words) + ') read as missing values')
     return stamps, line_nos, [np.array(d, dtype=np.float64) for d in data]
 
 

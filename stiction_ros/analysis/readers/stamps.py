@@ -36,6 +36,10 @@ ZONES = {'utc': timezone.utc, 'gmt': timezone.utc, 'z': timezone.utc}
 UNIX_S = 1e9
 UNIX_MS = 1e11
 UNIX_END = 1e14
+# Excel's serial dates (days since 1899-12-30) of the years 1954-2119, stepping by
+# at least half a second: no record's seconds start there and step that little.
+EXCEL_DAYS = (20_000.0, 80_000.0)
+EXCEL_EPOCH = datetime(1899, 12, 30)
 _TIME = (r'(?P<H>\d{1,2}):(?P<M>\d{2})(?::(?P<S>\d{2})(?:[.,](?P<f>\d{1,9}))?)?'
          r'\s*(?P<ap>[AaPp][Mm])?')
 _ZONE = r'\s*(?P<z>Z|UTC|GMT|[+-]\d{2}:?\d{2})?'
@@ -101,6 +105,13 @@ def _numbers(path, name, unit, cells, rows, number):
         first /= 1000.0
         notes.append(f'{name}: numbers from {UNIX_MS:g} on read as Unix time in milliseconds '
                      "(name the column 'time (s)' if they are seconds)")
+    elif unit is None and _excel_days(t, first):
+        start = EXCEL_EPOCH + timedelta(milliseconds=round(float(first) * 86_400_000.0))
+        t = (t - first) * 86400.0
+        notes.append(f'{name}: numbers near {first:.6g} stepping by under a hundredth read as '
+                     f'Excel serial dates (days since 1899-12-30: {start:%Y-%m-%d %H:%M:%S} '
+                     "on); name the column 'time (s)' if they are seconds")
+        return Stamps(t, start, 'datetime', notes)
     elif first >= UNIX_END:
         raise InputError(f'{path}: column {name!r}: {first:g} is no time in seconds; give its '
                          "unit in the header, e.g. 'time (us)' or 'time (ns)'")
@@ -108,6 +119,17 @@ def _numbers(path, name, unit, cells, rows, number):
         kind = 'unix'
         start = datetime.fromtimestamp(first, timezone.utc)
     return Stamps(t, start, kind, notes)
+
+
+def _excel_days(t: np.ndarray, first: float) -> bool:
+    if not EXCEL_DAYS[0] <= first < EXCEL_DAYS[1]:
+        return False
+    steps = np.diff(t[np.isfinite(t)])
+    steps = steps[steps > 0]
+    if not len(steps):
+        return False
+    step = float(np.median(steps))
+    return step < 0.01 and step * 86400.0 >= 0.5
 
 
 def _dates(path, name, cells, rows, zone):
