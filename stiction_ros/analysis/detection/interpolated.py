@@ -68,7 +68,8 @@ def describe(mask: np.ndarray, sample_time: float) -> str:
         return ''
     rows = 'row lies' if n == 1 else 'rows lie'
     return (f'{n} of {len(mask)} {rows} exactly midway between their neighbours in both OP '
-            f'and PV: interpolated by the historian between stored values, not measured at '
+            f'and PV: interpolated between stored values (by the historian, or by the reader '
+            f'for samples the file has no row for), not measured at '
             f'{sample_time:g} s; the noise the figures are scaled by reads low across them '
             '(export the raw samples to be sure)')
 
@@ -85,8 +86,9 @@ def lines_judgeable(pv: np.ndarray) -> Judgeable:
     if share > MAX_PV_LINES:
         return Judgeable(False, 'historian_lines',
                          f'{share:.0%} of the PV rows lie exactly on straight lines between '
-                         'their neighbours: most of the trend was drawn by the historian '
-                         '(a compressed or interpolated export), not measured; export the '
+                         'their neighbours: most of the trend was drawn between stored '
+                         'values, not measured (a compressed or interpolated export, or the '
+                         "reader's filling of samples the file has no row for); export the "
                          'raw samples (compression off). A simulation without measurement '
                          'noise looks the same: add noise to its PV')
     return Judgeable(True)

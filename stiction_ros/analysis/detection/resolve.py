@@ -171,11 +171,16 @@ def judgeable(op: np.ndarray, pv: np.ndarray, sample_time: float,
         # Some historians export OP as a 0-1 fraction; every threshold here is in %.
         fraction = (0.0 < float(np.ptp(op)) and float(np.max(np.abs(op))) <= 1.0
                     and not _frozen(op))
-        hint = ('; OP stays within 0-1: if it is a fraction of the stroke, give it in % '
-                '(x 100)' if fraction else '')
+        travel = float(np.ptp(op))
+        if fraction:
+            return Judgeable(False, 'no_excitation',
+                             f'OP stays within 0-1 and moved through {travel:.3g}: if it is a '
+                             f'fraction of the stroke ({100 * travel:.3g} % of it), give it in '
+                             f'% (x 100), as every threshold here reads it; read as %, the '
+                             f'valve was never asked to move')
         return Judgeable(False, 'no_excitation',
-                         f'OP never moved more than {float(np.ptp(op)):.3g} % (manual mode or '
-                         f'saturated?): the valve was never asked to move{hint}')
+                         f'OP never moved more than {travel:.3g} % (manual mode or '
+                         f'saturated?): the valve was never asked to move')
     d_pv = np.diff(pv)
     if alternating(op, pv):
         return Judgeable(False, 'under_sampled',
