@@ -142,3 +142,34 @@ def test_a_newest_first_export_is_read_oldest_first_and_said(tmp_path, stamp):
     assert back.start_time == ahead.start_time and back.sample_time == ahead.sample_time
     assert any('newest first' in n for n in back.notes)
     assert not any('newest first' in n for n in ahead.notes)
+
+
+@pytest.mark.parametrize('header, manual', [('FIC101.MODE', 'MAN'), ('Mode', '0'),
+                                            ('FIC101.MODE', 'IMAN')])
+def test_rows_a_mode_column_puts_in_manual_are_excluded(tmp_path, header, manual):
+    rng = np.random.default_rng(3)
+    auto = '1' if manual == '0' else 'AUTO'
+    rows = [f'{10 * k},{50 + rng.normal():.4f},{rng.normal():.4f},'
+            f'{manual if 100 <= k < 160 else auto}' for k in range(400)]
+    path = tmp_path / 'm.csv'
+    path.write_text('\n'.join([f't,FIC101.OP,FIC101.PV,{header}', *rows]) + '\n')
+    rec = load_record(path)
+    assert np.flatnonzero(~rec.valid).tolist() == list(range(100, 160))
+    assert rec.source['columns']['mode'] == header
+    assert not any('ignored' in n for n in rec.notes)
+
+
+def test_a_mode_column_of_unknown_codes_is_not_guessed_at(tmp_path):
+    rows = [f'{10 * k},{50 + k % 7},{k % 5},{8 if k < 200 else 16}' for k in range(400)]
+    path = tmp_path / 'm.csv'
+    path.write_text('\n'.join(['t,op,pv,mode', *rows]) + '\n')
+    rec = load_record(path)
+    assert rec.valid.all() and 'mode' not in rec.source['columns']
+    assert any("mode values '16', '8' are neither automatic" in n for n in rec.notes)
+
+
+def test_a_stored_on_change_mode_holds_until_the_next_row():
+    from stiction_ros.analysis.readers.modes import held
+    got = held(np.array([0.0, 25.0, 50.0]), np.array([1.0, 0.0, 1.0]),
+               np.array([-5.0, 0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0]))
+    np.testing.assert_array_equal(got, [np.nan, 1, 1, 1, 0, 0, 1, 1])

@@ -38,7 +38,7 @@ if TYPE_CHECKING:  # pragma: no cover - for the annotations only
 # explain_record's limit: at least a tenth of the record must stay for the fits.
 HOLDOUT_MAX = 0.9
 # What --columns may name: the time and the readers' signals (stiction_ros.analysis.record).
-COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp')
+COLUMN_KEYS = ('t', 'op', 'mv', 'pv', 'sp', 'mode')
 # Files a report must never be written over (the readers' suffixes, and a bag's files).
 RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap', '.db3', '.yaml', '.xlsx', '.xls', '.ods')
 COLUMNS_FIX = 'write SIGNAL=COLUMN pairs, e.g. --columns op=FIC101.OP,pv=FIC101.PV,t=Timestamp'
@@ -78,7 +78,7 @@ def _path_or_none(value, name):
 
 def parse_columns(value: object) -> tuple[tuple[str, str], ...] | None:
     """
-    Return ``--columns`` as ``((signal, column), ...)`` in the order t, op, mv, pv, sp.
+    Return ``--columns`` as ``((signal, column), ...)`` in the order t, op, mv, pv, sp, mode.
 
     ``value`` is None, text (``'op=FIC101.OP,pv=FIC101.PV'``), a mapping or
     pairs.  Raises :class:`InputError` naming the fix for an unknown signal,
@@ -152,8 +152,9 @@ class AnalyzeOptions:
         Namespace of the loop topics in a bag, e.g. ``'/loop1'``.
     columns : tuple of (str, str) pairs, or None
         Which CSV or historian column holds ``t``, ``op``, ``mv``, ``pv``, ``sp``
-        where the names do not say; given as text (``'op=FIC101.OP,t=Zeit'``),
-        a mapping or pairs, kept as ``(('t', 'Zeit'), ('op', 'FIC101.OP'))``.
+        and the controller's ``mode`` where the names do not say; given as text
+        (``'op=FIC101.OP,t=Zeit'``), a mapping or pairs, kept as
+        ``(('t', 'Zeit'), ('op', 'FIC101.OP'))``.
     loop_type : str
         ``'auto'``, ``'self-regulating'`` or ``'integrating'``.
     detector : str or None
@@ -313,7 +314,8 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     sampling = record.source.get('sampling')
     say(f'{record.samples} samples at {record.sample_time:g} s'
         + (f' ({sampling})' if sampling else '') + ', signals '
-        f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}')
+        f'{", ".join(s for s in ("op", "mv", "pv", "sp") if record.has(s))}'
+        + (', mode' if 'mode' in (record.source.get('columns') or {}) else ''))
     warned = set(record.source.get('warnings') or [])
     for note in record.notes:
         # How the file was read (a column ignored, a word read as missing, a row count

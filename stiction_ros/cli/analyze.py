@@ -88,8 +88,8 @@ def parser() -> argparse.ArgumentParser:
                    help='analyse only T0 <= t <= T1, seconds from the start of the record')
     p.add_argument('--namespace', help='namespace of the loop topics in a bag, e.g. /loop1')
     p.add_argument('--columns', metavar='SIGNAL=COLUMN,...', action='append',
-                   help='which CSV or historian columns hold t, op, mv, pv, sp where their '
-                        'names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp '
+                   help='which CSV or historian columns hold t, op, mv, pv, sp, mode where '
+                        'their names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp '
                         '(given more than once, all of them count)')
     p.add_argument('--loop-type', default='auto', choices=LOOP_TYPES,
                    help='auto: integrating when the tag names a level loop (LIC)')

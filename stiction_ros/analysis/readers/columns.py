@@ -50,6 +50,8 @@ class Columns:
     signals: dict
     ignored: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    # The controller's mode (``mode``, ``FIC101.MODE``): rows not in automatic are excluded.
+    mode: int | None = None
 
 
 def split_unit(name: str) -> tuple[str, str | None]:
@@ -86,6 +88,7 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
     if date is not None:
         taken.add(date)
     found = {s: given[s] for s in SIGNALS if s in given}
+    modes = [] if 'mode' not in given else [(0, given['mode'])]
     candidates = {s: [] for s in SIGNALS}
     tags = {}
     for i, (base, _) in enumerate(keys):
@@ -95,6 +98,11 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
             candidates[ALIASES.get(base, base)].append((0, i))
             continue
         m = TAG.fullmatch(base)
+        if 'mode' not in given and (base == 'mode' or (m and m['part'] == 'mode')):
+            modes.append((0 if base == 'mode' else 1, i))
+            if m:
+                tags[i] = m['tag']
+            continue
         if m and m['part'] in SUFFIXES:
             tags[i] = m['tag']
             candidates[SUFFIXES[m['part']]].append((1, i))
@@ -118,10 +126,28 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
                          '--columns op=COLUMN')
     for s in SIGNALS[1:]:
         _pick(s, path, header, candidates, found, tags, notes)
-    used = {time, date, *found.values()}
+    mode = _pick_mode(header, modes, found, tags, notes)
+    used = {time, date, mode, *found.values()}
     ignored = [h or '(unnamed)' for i, h in enumerate(header) if i not in used]
     _check_duplicates(path, header, [i for i in used if i is not None])
-    return Columns(time, unit, date, found, ignored, notes)
+    return Columns(time, unit, date, found, ignored, notes, mode)
+
+
+def _pick_mode(header, modes, found, tags, notes):
+    """Return the mode column: given, named ``mode``, or op's tag's; None when unclear."""
+    if not modes:
+        return None
+    best = min(rank for rank, _ in modes)
+    top = [i for rank, i in modes if rank == best]
+    if len(top) > 1:
+        op_tag = tags.get(found['op'])
+        top = [i for i in top if tags.get(i) == op_tag] if op_tag else []
+        if len(top) != 1:
+            notes.append('mode: several columns could be the mode ('
+                         + ', '.join(repr(header[i]) for _, i in modes)
+                         + '); none used: name it with --columns mode=COLUMN')
+            return None
+    return top[0]
 
 
 def _find(path, header, key, name):

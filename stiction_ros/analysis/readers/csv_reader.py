@@ -30,6 +30,7 @@ import re
 import numpy as np
 from stiction_ros.analysis.readers import align
 from stiction_ros.analysis.readers.columns import match_columns
+from stiction_ros.analysis.readers.modes import EXCLUDED, held, read_modes
 from stiction_ros.analysis.readers.stamps import decrease_hint, read_stamps, TIME_OF_DAY
 from stiction_ros.analysis.record import assemble, InputError
 
@@ -145,9 +146,15 @@ def read_csv_record(path, text, columns=None):
                                  for no, cells in zip(nos, rows)], dtype=np.float64)
         stored[name] = np.array([bool(cells[c].strip()) for cells in rows])
         marked[name] = sum(reader.bad.get(header[c], {}).values())
+    mode = None
+    if cols.mode is not None:
+        mode, mode_notes = read_modes(header[cols.mode], [cells[cols.mode] for cells in rows])
+        notes += mode_notes
     notes = label_notes + cols.notes + notes + reader.notes()
-    return _on_grid(path, stamps, (values, stored, marked), cols.ignored, notes,
-                    {s: header[i] for s, i in cols.signals.items()})
+    names = {s: header[i] for s, i in cols.signals.items()}
+    if mode is not None:
+        names['mode'] = header[cols.mode]
+    return _on_grid(path, stamps, (values, stored, marked, mode), cols.ignored, notes, names)
 
 
 def _skip_label_rows(rows, nos, cols):
@@ -232,7 +239,7 @@ def _shown(stamps, t, cells, r):
 
 
 def _on_grid(path, stamps, cells, ignored, notes, names_used):
-    values, stored, marked = cells
+    values, stored, marked, mode = cells
     t = stamps.seconds
     rel = t - t[0]
     try:
@@ -252,6 +259,7 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
     if stray <= align.STRAY and not len(crowded) and covered >= COVERED:
         _check_size(path, n, ts)
         signals = _binned(k, n, values, marked, notes)
+        at = None if mode is None else align.place(k, mode, n)[0]
         sampling = "the rows' spacing"
         offset = center + k0 * ts
     else:
@@ -271,6 +279,7 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
                      'interpolates (holding each value would draw steps, which read as '
                      'stick-slip)')
         signals = _resampled(rel, n, ts, values, stored, notes)
+        at = None if mode is None else held(rel, mode, np.arange(n) * ts)
         offset = 0.0
     source = {'path': str(path), 'format': 'csv', 'columns': names_used,
               'time': f'{stamps.name} ({stamps.kind})', 'sampling': sampling}
@@ -278,7 +287,9 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
     if stamps.start is not None:
         start = (stamps.start + timedelta(seconds=float(offset))).isoformat()
     origin = 0.0 if stamps.kind in ('datetime', 'time of day') else float(t[0] + offset)
-    return assemble(signals, ts, notes=notes, source=source, start_time=start,
+    # A sample without a mode value of its own is not excluded for it.
+    reasons = None if at is None else {EXCLUDED: at == 0.0}
+    return assemble(signals, ts, reasons, notes=notes, source=source, start_time=start,
                     name=_stem(path), time_origin=origin)
 
 
