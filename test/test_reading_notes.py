@@ -11,7 +11,7 @@ from stiction_ros.analysis.readers import load_record
 from stiction_ros.errors import InputError
 
 PLANT_LOOPS = plant_loops_dir()
-pytestmark = pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
+plant = pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')
 
 
 def _plant_csv(path, header, sp_cells=None, pv_cells=None):
@@ -33,6 +33,7 @@ def analyze(*args):
                           capture_output=True, text=True, timeout=300)
 
 
+@plant
 @pytest.mark.parametrize('name', ['Setpoint', 'Set point', 'FIC101.Setpoint', 'SP (kg/h)'])
 def test_a_set_point_column_named_as_engineers_name_it_is_read(tmp_path, name):
     path = _plant_csv(tmp_path / 'l.csv', ['t', 'FIC101.OP', 'FIC101.PV', name])
@@ -40,6 +41,7 @@ def test_a_set_point_column_named_as_engineers_name_it_is_read(tmp_path, name):
     assert rec.has('sp') and not any('ignored' in n for n in rec.notes)
 
 
+@plant
 def test_the_words_a_historian_writes_for_no_value_are_missing_values_and_said(tmp_path):
     words = {10: '<null>', 11: '---', 12: '?', 13: 'I/O Timeout'}
     path = _plant_csv(tmp_path / 'w.csv', ['Time', 'OP', 'PV', 'Setpoint'], pv_cells=words)
@@ -52,6 +54,7 @@ def test_the_words_a_historian_writes_for_no_value_are_missing_values_and_said(t
         ' '.join(res.stderr.split())
 
 
+@plant
 def test_an_ignored_column_is_named_on_the_terminal(tmp_path):
     path = _plant_csv(tmp_path / 'x.csv', ['t', 'OP', 'PV', 'Remarks'])
     res = analyze(path)
@@ -59,6 +62,7 @@ def test_an_ignored_column_is_named_on_the_terminal(tmp_path):
     assert 'signals op, pv\n' in res.stderr and 'note: ignored columns: Remarks' in res.stderr
 
 
+@plant
 def test_a_record_that_cannot_be_judged_has_no_score_of_zero_on_its_page(tmp_path):
     # OP as a fraction of its stroke: under the no-excitation floor, so not judged.
     f = sorted((PLANT_LOOPS / 'stiction').glob('*FIC46005_0902*'))[0]
@@ -117,6 +121,7 @@ def test_three_label_rows_are_not_taken_for_units_and_the_file_is_refused(tmp_pa
         load_record(path)
 
 
+@plant
 def test_columns_given_more_than_once_all_count_and_a_signal_twice_is_refused(tmp_path):
     path = _plant_csv(tmp_path / 'e.csv', ['Time', 'Output %', 'Flow kg/h', 'SP'])
     res = analyze(path, '--columns', 'op=Output %', '--columns', 'pv=Flow kg/h', '--json',
@@ -173,3 +178,36 @@ def test_a_stored_on_change_mode_holds_until_the_next_row():
     got = held(np.array([0.0, 25.0, 50.0]), np.array([1.0, 0.0, 1.0]),
                np.array([-5.0, 0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0]))
     np.testing.assert_array_equal(got, [np.nan, 1, 1, 1, 0, 0, 1, 1])
+
+
+@pytest.mark.parametrize('irregular', [False, True])
+def test_a_mode_written_only_when_it_changes_holds_on_the_rows_between(tmp_path, irregular):
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(4.0, 16.0, 400)) if irregular else 10.0 * np.arange(400)
+    cells = {100: 'MAN', 120: 'No Data', 160: 'AUTO'}
+    rows = [f'{t[k]:.3f},{50 + rng.normal():.4f},{rng.normal():.4f},{cells.get(k, "")}'
+            for k in range(400)]
+    path = tmp_path / 'c.csv'
+    path.write_text('\n'.join(['t,FIC1.OP,FIC1.PV,FIC1.MODE', *rows]) + '\n')
+    rec = load_record(path)
+    out = rec.t[~rec.valid] + rec.time_origin
+    # Excluded from the MAN row's time to before the AUTO row's, nothing else.
+    assert out.min() >= t[100] - rec.sample_time and out.max() < t[160]
+    assert out.max() - out.min() > 0.8 * (t[160] - t[100])
+
+
+def test_another_loops_mode_is_not_taken_for_this_ones(tmp_path):
+    rows = [f'{10 * k},{50 + k % 7},{k % 5},{"MAN" if 100 <= k < 160 else "AUTO"}'
+            for k in range(300)]
+    path = tmp_path / 'o.csv'
+    path.write_text('\n'.join(['t,FIC1.OP,FIC1.PV,P101.MODE', *rows]) + '\n')
+    rec = load_record(path)
+    assert rec.valid.all() and any('no column is the mode of' in n for n in rec.notes)
+
+
+def test_a_fast_loggers_seconds_in_excels_range_stay_seconds(tmp_path):
+    path = tmp_path / 'f.csv'
+    path.write_text('\n'.join(['t,op,pv'] + [f'{30000 + 0.001 * k:.3f},{50 + k % 7},{k % 5}'
+                                             for k in range(300)]) + '\n')
+    rec = load_record(path)
+    assert rec.sample_time == pytest.approx(0.001) and not any('Excel' in n for n in rec.notes)

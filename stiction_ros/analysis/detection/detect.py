@@ -214,9 +214,6 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
             lines.append(skew.describe(sample_time))
         else:
             lines.insert(0, skew.describe(sample_time))
-    if sp is None:
-        # A caveat on everything read, after the findings.
-        lines.append(NO_SET_POINT)
     lerped = interpolated.interpolated_rows(op, pv)
     if lerped.any():
         # Read as they are (a fair guess of the trend), but named: the noise reads low.
@@ -224,6 +221,9 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
         top = 1 if held.count and held.share >= NOTABLE else 0
         lines.insert(top if lerped.mean() >= NOTABLE else len(lines),
                      interpolated.describe(lerped, sample_time))
+    if sp is None:
+        # A caveat on everything read: the last finding.
+        lines.append(NO_SET_POINT)
     osc = ev['oscillation']
     judge = cycle_judgeable(osc.oscillating, osc.period_s, sample_time)
     if not judge.ok:

@@ -57,7 +57,7 @@ def load_record(path: str | Path, namespace: str | None = None,
     ``namespace`` picks the bag topics (``/loop1`` for ``/loop1/op``; default:
     the one namespace that has an ``op``).  ``window`` is ``(t0, t1)`` in
     seconds from the start (either may be None).  ``columns`` maps ``t``,
-    ``op``, ``mv``, ``pv``, ``sp`` to the CSV or historian columns that hold
+    ``op``, ``mv``, ``pv``, ``sp``, ``mode`` to the CSV or historian columns that hold
     them (``{'op': 'FIC101.OP'}``), where the names do not say.  Raises
     :class:`InputError` if the input is unusable or has fewer than
     ``min_valid`` valid samples.

@@ -17,6 +17,9 @@ historians name it (historian.py reads ``<TAG>.MV`` so).  An exact name
 beats a tag.  Where two tags could be one signal, the one of op's tag is
 taken; else the refusal names them and the ``--columns`` fix.  ``columns``
 (``--columns op=FIC101.OP,t=Zeit``) overrides all of this for the signals it names.
+
+Mode: a column named ``mode``, or the ``MODE`` of op's tag (``FIC101.MODE``),
+is the controller's mode (``modes.py``); another loop's mode is not taken.
 """
 
 from dataclasses import dataclass, field
@@ -75,7 +78,7 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
     """
     Return the :class:`Columns` of ``header`` (names as written, stripped).
 
-    ``columns`` maps ``t``, ``op``, ``mv``, ``pv``, ``sp`` to header names
+    ``columns`` maps ``t``, ``op``, ``mv``, ``pv``, ``sp``, ``mode`` to header names
     (case ignored); the rest are found by name.  Raises :class:`InputError`
     naming the fix when a needed column is missing or ambiguous.
     """
@@ -134,19 +137,21 @@ def match_columns(path: object, header: list[str], columns: dict | None = None) 
 
 
 def _pick_mode(header, modes, found, tags, notes):
-    """Return the mode column: given, named ``mode``, or op's tag's; None when unclear."""
+    """Return the mode column: given, named ``mode``, or of op's tag; None when unclear."""
     if not modes:
         return None
     best = min(rank for rank, _ in modes)
     top = [i for rank, i in modes if rank == best]
-    if len(top) > 1:
+    if best == 1:
+        # Another loop's mode says nothing of this one's.
         op_tag = tags.get(found['op'])
-        top = [i for i in top if tags.get(i) == op_tag] if op_tag else []
-        if len(top) != 1:
-            notes.append('mode: several columns could be the mode ('
-                         + ', '.join(repr(header[i]) for _, i in modes)
-                         + '); none used: name it with --columns mode=COLUMN')
-            return None
+        top = [i for i in top if tags.get(i) == op_tag] if op_tag else top
+    if len(top) != 1:
+        notes.append('mode: ' + ('no column is the mode of ' + repr(header[found['op']])
+                                 if not top else 'several columns could be the mode')
+                     + ' (' + ', '.join(repr(header[i]) for _, i in modes)
+                     + '); none used: name it with --columns mode=COLUMN')
+        return None
     return top[0]
 
 

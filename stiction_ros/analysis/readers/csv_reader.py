@@ -29,19 +29,12 @@ import re
 
 import numpy as np
 from stiction_ros.analysis.readers import align
+from stiction_ros.analysis.readers.bad_words import BAD_WORDS
 from stiction_ros.analysis.readers.columns import match_columns
 from stiction_ros.analysis.readers.modes import EXCLUDED, held, read_modes
 from stiction_ros.analysis.readers.stamps import decrease_hint, read_stamps, TIME_OF_DAY
 from stiction_ros.analysis.record import assemble, InputError
 
-# What historians (OSIsoft PI's system digital states, IP.21, PHD) and Excel write in
-# place of a value they do not have: a bad value, never a number.
-BAD_WORDS = frozenset([
-    'no data', 'bad', 'bad input', 'bad data', 'bad quality', 'i/o timeout', 'shutdown',
-    'comm fail', 'scan off', 'out of serv', 'calc failed', 'pt created', 'configure',
-    'over range', 'under range', 'intf shut', 'no sample', 'no good data', 'null', 'none',
-    'n/a', '#n/a', '#value!', '#div/0!', '#ref!', '#num!', '#name?', '#null!', '<null>',
-    '-', '--', '---', '?'])
 DECIMAL_COMMA = re.compile(r'[+-]?(?:\d{1,3}(?:\.\d{3})+|\d*),\d+(?:[eE][+-]?\d+)?')
 # Rows on one grid that cover fewer of its samples than this were stored on change,
 # not logged every sample (a logger that lost a tenth of its rows is rare; a

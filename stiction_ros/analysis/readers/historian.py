@@ -25,7 +25,7 @@ from datetime import datetime, timedelta
 
 import numpy as np
 from stiction_ros.analysis.readers import align
-from stiction_ros.analysis.readers.csv_reader import BAD_WORDS
+from stiction_ros.analysis.readers.bad_words import BAD_WORDS
 from stiction_ros.analysis.record import assemble, InputError
 
 ROLES = {'MV': 'op', 'OP': 'op', 'PV': 'pv', 'SV': 'sp', 'SP': 'sp', 'MODE': 'mode'}

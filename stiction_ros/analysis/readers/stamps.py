@@ -37,8 +37,11 @@ UNIX_S = 1e9
 UNIX_MS = 1e11
 UNIX_END = 1e14
 # Excel's serial dates (days since 1899-12-30) of the years 1954-2119, stepping by
-# at least half a second: no record's seconds start there and step that little.
+# at least half a second and written with the decimals a second needs (1 s is
+# 1.2e-5 days): a seconds clock there that steps by under 0.01 s is a fast logger's,
+# written with fewer decimals.
 EXCEL_DAYS = (20_000.0, 80_000.0)
+EXCEL_DECIMALS = 5
 EXCEL_EPOCH = datetime(1899, 12, 30)
 _TIME = (r'(?P<H>\d{1,2}):(?P<M>\d{2})(?::(?P<S>\d{2})(?:[.,](?P<f>\d{1,9}))?)?'
          r'\s*(?P<ap>[AaPp][Mm])?')
@@ -105,7 +108,7 @@ def _numbers(path, name, unit, cells, rows, number):
         first /= 1000.0
         notes.append(f'{name}: numbers from {UNIX_MS:g} on read as Unix time in milliseconds '
                      "(name the column 'time (s)' if they are seconds)")
-    elif unit is None and _excel_days(t, first):
+    elif unit is None and _excel_days(t, first, cells):
         start = EXCEL_EPOCH + timedelta(milliseconds=round(float(first) * 86_400_000.0))
         t = (t - first) * 86400.0
         notes.append(f'{name}: numbers near {first:.6g} stepping by under a hundredth read as '
@@ -121,8 +124,11 @@ def _numbers(path, name, unit, cells, rows, number):
     return Stamps(t, start, kind, notes)
 
 
-def _excel_days(t: np.ndarray, first: float) -> bool:
+def _excel_days(t: np.ndarray, first: float, cells: list[str]) -> bool:
     if not EXCEL_DAYS[0] <= first < EXCEL_DAYS[1]:
+        return False
+    text = next((c.strip() for c in cells if c.strip()), '').replace(',', '.')
+    if len(text.partition('.')[2]) < EXCEL_DECIMALS:
         return False
     steps = np.diff(t[np.isfinite(t)])
     steps = steps[steps > 0]
