@@ -18,7 +18,8 @@ When the file has the rows line 2 announces and each stamp is within one
 period of its row's grid instant, row ``i`` is sample ``i``: some exports
 stamp a row one period early or late (a repeated stamp next to a doubled
 step), which is a labelling slip, not a lost sample.  Otherwise rows are
-placed by their stamps like any other source.
+placed by their stamps like any other source.  Local stamps across a change
+of summer time are read as the CSV reader reads them (``daylight.py``).
 """
 
 from datetime import datetime, timedelta
@@ -26,6 +27,7 @@ from datetime import datetime, timedelta
 import numpy as np
 from stiction_ros.analysis.readers import align
 from stiction_ros.analysis.readers.bad_words import BAD_WORDS
+from stiction_ros.analysis.readers.daylight import clock_changes
 from stiction_ros.analysis.record import assemble, InputError
 
 ROLES = {'MV': 'op', 'OP': 'op', 'PV': 'pv', 'SV': 'sp', 'SP': 'sp', 'MODE': 'mode'}
@@ -79,7 +81,14 @@ def read_historian_record(path, text, columns=None):
     stamps, line_nos, data = _rows(path, lines, first_row, columns, pyfmt, fmt, used, notes)
     if not len(stamps):
         raise InputError(f'{path}: no data rows after the header')
-    rel = np.array([(s - start).total_seconds() for s in stamps])
+    rel, clock_notes = clock_changes(np.array([(s - start).total_seconds() for s in stamps]),
+                                     start)
+    notes += clock_notes
+    back = np.flatnonzero(np.diff(rel) < 0)
+    if len(back):
+        i = back[0] + 1
+        raise InputError(f'{path}: line {line_nos[i]}: time stamp {stamps[i]:%Y-%m-%d %H:%M:%S}'
+                         f" is before the previous line's {stamps[i - 1]:%Y-%m-%d %H:%M:%S}")
     values = dict(zip(list(roles) + [f'flag:{f}' for f in flags], data))
     k, n, align_notes = _grid(path, rel, period, announced, line_nos, stamps)
     notes += align_notes
@@ -183,9 +192,6 @@ def _rows(path, lines, first_row, names, pyfmt, fmt, used, notes):
         if stamp is None:
             raise InputError(f'{path}: line {no}: time stamp {cells[0][:40]!r} does not match '
                              f'{fmt}')
-        if stamps and stamp < stamps[-1]:
-            raise InputError(f'{path}: line {no}: time stamp {cells[0]} is before the previous '
-                             f"line's {stamps[-1]:%Y-%m-%d %H:%M:%S}")
         stamps.append(stamp)
         line_nos.append(no)
         for j, i in enumerate(used):

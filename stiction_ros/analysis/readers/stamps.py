@@ -14,8 +14,9 @@ where a day over 12 or an AM/PM proves the order of month and day (US
 Excel: month first); or a time of day alone.  A zone in a header
 (``Timestamp (UTC)``) applies to stamps that have none.  Stamps with
 offsets are compared as instants, so a change of offset (summer time) is
-no jump; local stamps without one repeat an hour when clocks go back, which
-is refused with the fix.
+no jump; local stamps without one skip or repeat an hour when clocks
+change, which is read as contiguous rows where only a change of clocks fits
+(``daylight.py``) and refused with the fix otherwise.
 """
 
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ import re
 from typing import Callable
 
 import numpy as np
+from stiction_ros.analysis.readers.daylight import clock_changes
 from stiction_ros.errors import InputError
 
 UNITS = {'s': 1.0, 'sec': 1.0, 'secs': 1.0, 'second': 1.0, 'seconds': 1.0,
@@ -262,7 +264,10 @@ def _relative(path, name, stamps, rows, cells, zone, kind):
                          f'({cells[j].strip()!r}); give every stamp its offset, or none')
     t0 = stamps[0]
     t = np.array([(s - t0).total_seconds() for s in stamps], dtype=np.float64)
-    return Stamps(t, t0, kind, [])
+    notes = []
+    if kind == 'datetime' and t0.tzinfo is None:
+        t, notes = clock_changes(t, t0)
+    return Stamps(t, t0, kind, notes)
 
 
 def decrease_hint(stamps: Stamps, step: float) -> str:
