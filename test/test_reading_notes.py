@@ -211,3 +211,15 @@ def test_a_fast_loggers_seconds_in_excels_range_stay_seconds(tmp_path):
                                              for k in range(300)]) + '\n')
     rec = load_record(path)
     assert rec.sample_time == pytest.approx(0.001) and not any('Excel' in n for n in rec.notes)
+
+
+@plant
+def test_a_folder_audit_keeps_each_files_reading_notes_in_its_row(tmp_path):
+    from stiction_ros.app.analyze import AnalyzeOptions
+    from stiction_ros.app.batch import analyze_one
+    path = _plant_csv(tmp_path / 'n.csv', ['t', 'OP', 'PV', 'Remarks'], pv_cells={10: 'Bad'})
+    row = analyze_one(path, AnalyzeOptions(input=str(path), hammerstein=False))
+    assert row['ok'] and row['warnings'] == []
+    assert 'ignored columns: Remarks' in row['notes']
+    assert any("1 cell marked bad ('Bad')" in n for n in row['notes'])
+    assert not any(n.startswith('excluded ') for n in row['notes'])

@@ -133,12 +133,14 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         The summary row: ``input``, ``ok``, then ``detected``, ``answer``,
         ``probability`` (OP/PV only), ``score`` (None where the record could not be
         judged), ``fits``, ``summary``, ``warnings`` (what the input's reader
-        said, such as a bag that ends early; empty when nothing) (and
+        said, such as a bag that ends early; empty when nothing), ``notes`` (how
+        the file was read and analysed, as the terminal's ``note:`` lines: a column
+        ignored, cells read as missing, a change of clocks) (and
         ``why_not``, ``effect``, ``report``) or ``error``; ``seconds``.
 
     """
     t0 = time.perf_counter()
-    row = {'input': str(path), 'ok': False, 'warnings': []}
+    row = {'input': str(path), 'ok': False, 'warnings': [], 'notes': []}
     if Path(path).suffix.lower() in WORKBOOK_SUFFIXES:
         # Listed so that it is not lost without a word; not read, so not a failure.
         row.update(skipped=True,
@@ -156,12 +158,15 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         if st['detected'] is None:
             row['why_not'] = _why_not(st)
         judged = st['detected'] is not None or st.get('probability') is not None
+        warnings = list((report.get('input') or {}).get('warnings') or [])
         # A record that could not be judged has no score; 0 would sort it with the healthy.
         row.update(ok=True, detected=st['detected'], answer=st.get('answer'),
                    probability=st.get('probability'), score=st['score'] if judged else None,
                    fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
                    summary=summary_line(report),
-                   warnings=list((report.get('input') or {}).get('warnings') or []))
+                   warnings=warnings,
+                   notes=[n for n in report.get('notes') or []
+                          if not n.startswith('excluded ') and n not in warnings])
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']
         # Always there (null when it does not apply): a script reads every row alike.
