@@ -223,3 +223,22 @@ def test_a_folder_audit_keeps_each_files_reading_notes_in_its_row(tmp_path):
     assert 'ignored columns: Remarks' in row['notes']
     assert any("1 cell marked bad ('Bad')" in n for n in row['notes'])
     assert not any(n.startswith('excluded ') for n in row['notes'])
+
+
+@pytest.mark.parametrize('step, noted', [(1000, True), (300, True), (10, False), (1, False)])
+def test_whole_number_stamps_a_long_sample_apart_say_they_were_read_as_seconds(
+        tmp_path, step, noted):
+    k = np.arange(300)
+    rows = ''.join(f'{i * step},{50 + 5 * np.sin(i / 7):.4f},{20 + np.cos(i / 7):.4f}\n'
+                   for i in k)
+    path = tmp_path / 'ms.csv'
+    path.write_text('t,op,pv\n' + rows)
+    rec = load_record(path)
+    assert rec.sample_time == step
+    hint = [n for n in rec.notes if 'if they are milliseconds' in n]
+    assert bool(hint) == noted
+    if noted:
+        assert f'whole numbers {step} apart' in hint[0] and "name the column 't (ms)'" in hint[0]
+        path.write_text('t (ms),op,pv\n' + rows)
+        rec = load_record(path)
+        assert rec.sample_time == step / 1000 and not any('milliseconds' in n for n in rec.notes)

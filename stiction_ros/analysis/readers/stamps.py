@@ -45,6 +45,9 @@ UNIX_END = 1e14
 EXCEL_DAYS = (20_000.0, 80_000.0)
 EXCEL_DECIMALS = 5
 EXCEL_EPOCH = datetime(1899, 12, 30)
+# Whole-number stamps at least this far apart (s) without a unit are said to be
+# read as seconds: a 1 s logger in milliseconds writes 1000.
+MS_HINT_STEP = 100.0
 _TIME = (r'(?P<H>\d{1,2}):(?P<M>\d{2})(?::(?P<S>\d{2})(?:[.,](?P<f>\d{1,9}))?)?'
          r'\s*(?P<ap>[AaPp][Mm])?')
 _ZONE = r'\s*(?P<z>Z|UTC|GMT|[+-]\d{2}:?\d{2})?'
@@ -123,7 +126,31 @@ def _numbers(path, name, unit, cells, rows, number):
     if UNIX_S <= first < UNIX_MS:
         kind = 'unix'
         start = datetime.fromtimestamp(first, timezone.utc)
+    elif unit is None:
+        notes += _milliseconds_hint(name, t)
     return Stamps(t, start, kind, notes)
+
+
+def _milliseconds_hint(name: str, t: np.ndarray) -> list[str]:
+    # A logger's milliseconds under a bare 't' read as seconds put every period
+    # 1000 times too long; whole numbers a long sample apart may be either.
+    steps = np.diff(t[np.isfinite(t)])
+    steps = steps[steps > 0]
+    if not len(steps):
+        return []
+    step = float(np.median(steps))
+    if step < MS_HINT_STEP or not np.all(np.mod(t[np.isfinite(t)], 1.0) == 0.0):
+        return []
+    return [f'{name}: whole numbers {step:g} apart, read as seconds (a sample every '
+            f"{_span(step)}); if they are milliseconds, name the column '{name} (ms)'"]
+
+
+def _span(seconds: float) -> str:
+    if seconds >= 3600.0:
+        return f'{seconds / 3600.0:.3g} h'
+    if seconds >= 60.0:
+        return f'{seconds / 60.0:.3g} min'
+    return f'{seconds:g} s'
 
 
 def _excel_days(t: np.ndarray, first: float, cells: list[str]) -> bool:
