@@ -24,7 +24,7 @@ from pathlib import Path
 import time
 from typing import Callable, TYPE_CHECKING
 
-from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
+from stiction_ros.app.choices import DATE_ORDERS, LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.app.progress import print_nothing, Step
 from stiction_ros.errors import InputError, ReportWriteError
 
@@ -155,6 +155,9 @@ class AnalyzeOptions:
         and the controller's ``mode`` where the names do not say; given as text
         (``'op=FIC101.OP,t=Zeit'``), a mapping or pairs, kept as
         ``(('t', 'Zeit'), ('op', 'FIC101.OP'))``.
+    date_order : str or None
+        ``'dmy'`` (day first) or ``'mdy'`` (month first) for a CSV's dates
+        where no day over 12 shows the order; None to refuse such dates.
     loop_type : str
         ``'auto'``, ``'self-regulating'`` or ``'integrating'``.
     detector : str or None
@@ -183,6 +186,7 @@ class AnalyzeOptions:
     window: tuple[float, float] | None = None
     namespace: str | None = None
     columns: tuple[tuple[str, str], ...] | None = None
+    date_order: str | None = None
     loop_type: str = 'auto'
     detector: str | None = None
     hammerstein: bool = True
@@ -219,6 +223,9 @@ class AnalyzeOptions:
                     raise InputError(f'{name} = {v} is outside [0, 100] % of span')
         self._check_window(put)
         put('columns', parse_columns(self.columns))
+        if self.date_order is not None and self.date_order not in DATE_ORDERS:
+            raise InputError(f'date order (--date-order) must be one of {DATE_ORDERS} (day or '
+                             f'month first), got {self.date_order!r}')
         holdout = self._number('holdout', self.holdout)
         if not 0.0 <= holdout < HOLDOUT_MAX:
             raise InputError(f'holdout (--holdout) must be in [0, {HOLDOUT_MAX:g}), got '
@@ -304,7 +311,8 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
                                hammerstein=options.hammerstein, detector=options.detector)
     say(f'reading {options.input}')
     record = load_record(options.input, namespace=options.namespace, window=options.window,
-                         columns=dict(options.columns) if options.columns else None)
+                         columns=dict(options.columns) if options.columns else None,
+                         date_order=options.date_order)
     if not (record.has('pv') or record.has('mv')):
         held = ', '.join(s for s in ('op', 'sp') if record.has(s))
         fix = ('record the pv or mv topic' if record.source.get('format') == 'bag' else

@@ -3,7 +3,7 @@ stiction-analyze: is this valve sticking, how much, and how well do the models f
 
     stiction-analyze INPUT [--model kano|choudhury|both] [--S S --J J]
                      [--fit-filter] [--window T0 T1] [--namespace NS]
-                     [--columns op=COL,pv=COL,...]
+                     [--columns op=COL,pv=COL,...] [--date-order dmy|mdy]
                      [--loop-type auto|self-regulating|integrating]
                      [--json REPORT.json] [--html REPORT.html]
 
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 # Only what --help needs is imported here: the analysis (numpy, scipy, numba)
 # loads in main(), so that the help answers in the time Python starts.
-from stiction_ros.app.choices import LOOP_TYPES, MODEL_CHOICES
+from stiction_ros.app.choices import DATE_ORDERS, LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import DetectorFileError, InputError, StictionError
 
@@ -50,7 +50,8 @@ inputs:
              time   t, time, timestamp, datetime, 'Time (s)', 'time [ms]', 'Timestamp
                     (UTC)', or date + time columns: seconds, or dates such as
                     2026-03-01 12:00:00, 2026-03-01T12:00:00Z, 2026-03-01T12:00:00+01:00,
-                    01.03.2026 12:00:00
+                    01.03.2026 12:00:00, 13-Jun-24 14:00, Jun 13, 2024 2:00 PM
+                    (--date-order dmy or mdy where no day over 12 shows the order)
              op     controller output (required), mv valve position, pv, sp: named
                     so, or by tag: FIC101.OP, FIC101_PV, 'FIC101 SP' (.SV is sp; a
                     lone FIC101.MV is the controller output, as DCS historians name it)
@@ -91,6 +92,10 @@ def parser() -> argparse.ArgumentParser:
                    help='which CSV or historian columns hold t, op, mv, pv, sp, mode where '
                         'their names do not say, e.g. op=FIC101.OP,pv=FIC101.PV,t=Timestamp '
                         '(given more than once, all of them count)')
+    p.add_argument('--date-order', choices=DATE_ORDERS, default=None,
+                   help="a CSV's dates where no day over 12 shows the order: dmy (day first, "
+                        '03/01/2026 is 3 January) or mdy (month first, 1 March); without it '
+                        'such dates are refused')
     p.add_argument('--loop-type', default='auto', choices=LOOP_TYPES,
                    help='auto: integrating when the tag names a level loop (LIC)')
     p.add_argument('--detector', metavar='FILE', default=None,

@@ -50,7 +50,8 @@ def detect_format(path: str | Path) -> str:
 
 def load_record(path: str | Path, namespace: str | None = None,
                 window: tuple[float | None, float | None] | None = None,
-                min_valid: int = MIN_VALID, columns: Mapping[str, str] | None = None) -> Record:
+                min_valid: int = MIN_VALID, columns: Mapping[str, str] | None = None,
+                date_order: str | None = None) -> Record:
     """
     Return the :class:`Record` of a recording, restricted to ``window`` if given.
 
@@ -58,7 +59,9 @@ def load_record(path: str | Path, namespace: str | None = None,
     the one namespace that has an ``op``).  ``window`` is ``(t0, t1)`` in
     seconds from the start (either may be None).  ``columns`` maps ``t``,
     ``op``, ``mv``, ``pv``, ``sp``, ``mode`` to the CSV or historian columns that hold
-    them (``{'op': 'FIC101.OP'}``), where the names do not say.  Raises
+    them (``{'op': 'FIC101.OP'}``), where the names do not say.
+    ``date_order`` (``'dmy'`` or ``'mdy'``) orders a CSV's dates where no day
+    over 12 does.  Raises
     :class:`InputError` if the input is unusable or has fewer than
     ``min_valid`` valid samples.
     """
@@ -70,12 +73,17 @@ def load_record(path: str | Path, namespace: str | None = None,
         if columns:
             record.notes.insert(0, '--columns ignored: a bag holds the topics op, mv, pv, sp '
                                 '(pick a loop with --namespace)')
+        if date_order:
+            record.notes.insert(0, '--date-order ignored: a bag has no dates to read')
     else:
         text, note = decode(path, read_bytes(path))
         if kind == 'historian':
             record = read_historian_record(path, text, columns)
+            if date_order:
+                record.notes.insert(0, '--date-order ignored: a historian export names its '
+                                    'time format in line 1')
         else:
-            record = read_csv_record(path, text, columns)
+            record = read_csv_record(path, text, columns, date_order)
         if note:
             record.notes.insert(0, note)
         if namespace is not None:

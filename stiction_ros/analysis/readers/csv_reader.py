@@ -99,8 +99,13 @@ class _Cells:
         return out
 
 
-def read_csv_record(path, text, columns=None):
-    """Return the :class:`Record` of CSV ``text`` read from ``path``; ``columns`` as --columns."""
+def read_csv_record(path, text, columns=None, date_order=None):
+    """
+    Return the :class:`Record` of CSV ``text`` read from ``path``.
+
+    ``columns`` as ``--columns``; ``date_order`` (``'dmy'``, ``'mdy'``) as
+    ``--date-order``, for dates no day over 12 orders.
+    """
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith('#')]
     if not lines:
@@ -127,12 +132,12 @@ def read_csv_record(path, text, columns=None):
             raise InputError(f'{path}: row {no} has {len(cells)} cells; the header has '
                              f'{len(header)}{hint}')
     reader = _Cells(path, delim)
-    if _newest_first(path, header, cols, rows, nos, reader):
+    if _newest_first(path, header, cols, rows, nos, reader, date_order):
         # Some historians' web exports list the newest row first.
         rows, nos = rows[::-1], nos[::-1]
         label_notes.append('rows run newest first (time falls on every row): read oldest '
                            'first')
-    stamps, notes = _time(path, header, cols, rows, nos, reader)
+    stamps, notes = _time(path, header, cols, rows, nos, reader, date_order=date_order)
     values, stored, marked = {}, {}, {}
     for name, c in cols.signals.items():
         values[name] = np.array([reader.number(no, header[c], cells[c])
@@ -181,21 +186,22 @@ def _parse(path, lines, delim):
         raise InputError(f'{path}: not a readable CSV ({err})') from None
 
 
-def _newest_first(path, header, cols, rows, nos, reader):
+def _newest_first(path, header, cols, rows, nos, reader, date_order):
     """Return whether the time column falls on every row (a newest-first export)."""
     if len(rows) < 3:
         return False
     try:
         # A copy: reading the stamps notes an unused date column in ``ignored``.
         probe = replace(cols, ignored=list(cols.ignored))
-        t = _time(path, header, probe, rows, nos, _Cells(path, reader.delim), check=False)
+        t = _time(path, header, probe, rows, nos, _Cells(path, reader.delim), check=False,
+                  date_order=date_order)
     except InputError:
         return False
     steps = np.diff(t[0].seconds)
     return bool(np.all(steps < 0))
 
 
-def _time(path, header, cols, rows, nos, reader, check=True):
+def _time(path, header, cols, rows, nos, reader, check=True, date_order=None):
     name = header[cols.time]
     cells = [r[cols.time] for r in rows]
     notes = []
@@ -208,7 +214,8 @@ def _time(path, header, cols, rows, nos, reader, check=True):
         else:
             cols.ignored.append(header[cols.date])
     stamps = read_stamps(path, name, cols.unit, cells, nos,
-                         lambda no, text: reader.number(no, name, text), reader.is_number)
+                         lambda no, text: reader.number(no, name, text), reader.is_number,
+                         date_order)
     stamps.name = name
     t = stamps.seconds
     if not check:

@@ -11,7 +11,9 @@ Text is a date and time: ISO 8601 (``2026-03-01 12:00:00``,
 second), ``01.03.2026 12:00:00`` (day first, as German and most European
 locales write), ``2026/03/01 12:00:00``, and ``03/01/2026 1:00:00 PM``
 where a day over 12 or an AM/PM proves the order of month and day (US
-Excel: month first); or a time of day alone.  A zone in a header
+Excel: month first) or ``--date-order`` says; ``13-Jun-24 14:00``,
+``13 Jun 2024`` and ``Jun 13, 2024 2:00 PM`` (English month names, a
+two-digit year as Excel reads it); or a time of day alone.  A zone in a header
 (``Timestamp (UTC)``) applies to stamps that have none.  Stamps with
 offsets are compared as instants, so a change of offset (summer time) is
 no jump; local stamps without one skip or repeat an hour when clocks
@@ -54,6 +56,16 @@ _ZONE = r'\s*(?P<z>Z|UTC|GMT|[+-]\d{2}:?\d{2})?'
 DATE_TIME = re.compile(r'(?P<a>\d{1,4})(?P<sep>[./-])(?P<b>\d{1,2})(?P=sep)(?P<c>\d{1,4})'
                        rf'(?:(?:[ T]+|,\s*){_TIME})?{_ZONE}')
 TIME_OF_DAY = re.compile(_TIME + _ZONE)
+# Excel's 13-Jun-24 and 13 Jun 2024, and the US Jun 13, 2024: English month names.
+MONTHS = {m: i + 1 for i, m in enumerate(
+    ('jan', 'feb', 'mar', 'apr', 'may', 'jun', 'jul', 'aug', 'sep', 'oct', 'nov', 'dec'))}
+_MON = r'(?P<mon>[A-Za-z]{3,9})\.?'
+MONTH_DATE = re.compile(rf'(?:(?P<d>\d{{1,2}})[- ]{_MON}[- ](?P<y>\d{{4}}|\d{{2}})'
+                        rf'|{_MON.replace("mon", "mon2")} (?P<d2>\d{{1,2}}),? (?P<y2>\d{{4}}))'
+                        rf'(?:(?:[ T]+|,\s*){_TIME})?{_ZONE}')
+# A two-digit year as Excel reads it: 00-29 in this century, 30-99 in the last.
+CENTURY_PIVOT = 30
+DATE_ORDERS = ('dmy', 'mdy')
 ISO_FIX = 'write the column as 2026-03-01 12:00:00 (ISO 8601) or in seconds'
 
 
@@ -77,14 +89,16 @@ class Stamps:
 
 def read_stamps(path: object, name: str, unit: str | None, cells: list[str],
                 rows: list[int], number: Callable[[int, str], float],
-                is_number: Callable[[str], bool]) -> Stamps:
+                is_number: Callable[[str], bool], date_order: str | None = None) -> Stamps:
     """
     Return the :class:`Stamps` of the time column ``name`` (``cells`` at file ``rows``).
 
     ``unit`` is what the header gave in brackets or after an underscore, if
     anything; ``number(row, text)`` reads a cell as the CSV reader reads numbers
     (decimal commas included) and raises its error for anything else;
-    ``is_number(text)`` says whether it would read one.
+    ``is_number(text)`` says whether it would read one.  ``date_order``
+    (``'dmy'`` or ``'mdy'``, ``--date-order``) says which of day and month
+    comes first where no date proves it; a date that contradicts it is refused.
     """
     first = next((c.strip() for c in cells if c.strip()), '')
     if not first or is_number(first):
@@ -95,7 +109,7 @@ def read_stamps(path: object, name: str, unit: str | None, cells: list[str],
                          f'{first[:30]!r}, not a number: {ISO_FIX}')
     if TIME_OF_DAY.fullmatch(first):
         return _times_of_day(path, name, cells, rows, zone)
-    return _dates(path, name, cells, rows, zone)
+    return _dates(path, name, cells, rows, zone, date_order)
 
 
 def _numbers(path, name, unit, cells, rows, number):
@@ -167,7 +181,7 @@ def _excel_days(t: np.ndarray, first: float, cells: list[str]) -> bool:
     return step < 0.01 and step * 86400.0 >= 0.5
 
 
-def _dates(path, name, cells, rows, zone):
+def _dates(path, name, cells, rows, zone, given=None):
     stamps, parsed = [], []
     for row, cell in zip(rows, cells):
         text = cell.strip()
@@ -176,22 +190,28 @@ def _dates(path, name, cells, rows, zone):
         except ValueError:
             m = DATE_TIME.fullmatch(text)
             if m is None:
-                _refuse(path, name, row, cell, 'not a date and time')
+                named = MONTH_DATE.fullmatch(text)
+                if named is None:
+                    _refuse(path, name, row, cell, 'not a date and time')
+                stamps.append(_from_month_name(path, name, row, cell, named))
+                continue
             parsed.append((row, cell, m))
             stamps.append(None)
             continue
         stamps.append(stamp)
     if parsed:
-        order = _date_order(path, name, parsed)
+        order = _date_order(path, name, parsed, given)
         it = iter(parsed)
         stamps = [s if s is not None else _from_match(path, name, *next(it), order)
                   for s in stamps]
     return _relative(path, name, stamps, rows, cells, zone, 'datetime')
 
 
-def _date_order(path, name, parsed):
+def _date_order(path, name, parsed, given=None):
     # Which of the first two fields is the day: proven by a value over 12 or an
-    # AM/PM (US Excel), never guessed.
+    # AM/PM (US Excel), or given (--date-order); never guessed.
+    if given is not None:
+        return _given_order(path, name, parsed, given)
     dotted = day_first = month_first = False
     for _, _, m in parsed:
         if len(m['a']) == 4:
@@ -214,8 +234,45 @@ def _date_order(path, name, parsed):
     if all(len(m['a']) == 4 for _, _, m in parsed):
         return 'ymd'
     row, cell, _ = parsed[0]
-    _refuse(path, name, row, cell, 'no day over 12 shows whether the day or the month '
-            'comes first')
+    raise InputError(f'{path}: row {row}, column {name!r}: {cell.strip()[:40]!r}: no day over '
+                     '12 shows whether the day or the month comes first; pass --date-order '
+                     f'dmy (day first) or mdy (month first), or {ISO_FIX}')
+
+
+def _given_order(path, name, parsed, given):
+    if given not in DATE_ORDERS:
+        raise InputError(f'date order must be one of {DATE_ORDERS}, got {given!r}')
+    month = 'b' if given == 'dmy' else 'a'
+    for row, cell, m in parsed:
+        if len(m['a']) != 4 and int(m[month]) > 12:
+            _refuse(path, name, row, cell, f'{m[month]} is no month, as --date-order '
+                    f'{given} reads it')
+    return given
+
+
+def _from_month_name(path, name, row, cell, m):
+    mon = (m['mon'] or m['mon2']).lower()
+    month = MONTHS.get(mon[:3])
+    if month is None or (len(mon) > 3 and not _month_word(mon)):
+        _refuse(path, name, row, cell, f'{mon!r} is no month name (English: Jan ... Dec)')
+    if m['d'] is not None:
+        d, y = int(m['d']), int(m['y'])
+        if len(m['y']) == 2:
+            y += 2000 if y < CENTURY_PIVOT else 1900
+    else:
+        d, y = int(m['d2']), int(m['y2'])
+    h, mi, s, us = _clock(path, name, row, cell, m) if m['H'] else (0, 0, 0, 0)
+    try:
+        stamp = datetime(y, month, d, h, mi, s, us)
+    except ValueError as err:
+        _refuse(path, name, row, cell, str(err))
+    return _zoned(stamp, m['z'])
+
+
+def _month_word(mon):
+    words = ('january', 'february', 'march', 'april', 'may', 'june', 'july', 'august',
+             'september', 'october', 'november', 'december', 'sept')
+    return mon in words
 
 
 def _from_match(path, name, row, cell, m, order):
