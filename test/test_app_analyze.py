@@ -130,3 +130,24 @@ def test_drawing_the_figures_chooses_no_matplotlib_backend(loop):
                          env=env, timeout=300)
     assert res.returncode == 0, res.stderr
     assert (loop / 'svg' / 'r_figures' / 'trends.png').stat().st_size > 10_000
+
+
+def test_each_part_of_a_long_analysis_is_said_as_a_step_before_it_runs(loop):
+    from stiction_ros.app.progress import Step
+    said = []
+    analyze_file(AnalyzeOptions(loop / 'loop.csv', model='kano'), said.append)
+    parts = [s for s in said if isinstance(s, Step) and s.task == 'analysing']
+    # With MV the fits answer; only the signatures run after them.
+    assert [p.detail for p in parts] == ['signatures'] and not parts[0].finished
+    # OP and PV alone: the detector, the signatures, then the size from OP and PV.
+    lines = (loop / 'loop.csv').read_text().splitlines()
+    head = lines[0].split(',')
+    keep = [i for i, c in enumerate(head) if c != 'mv']
+    (loop / 'oppv.csv').write_text('\n'.join(','.join(line.split(',')[i] for i in keep)
+                                             for line in lines) + '\n')
+    said = []
+    analysis = analyze_file(AnalyzeOptions(loop / 'oppv.csv'), said.append)
+    parts = [s for s in said if isinstance(s, Step) and s.task == 'analysing']
+    assert [p.detail for p in parts] == ['learned detector', 'signatures', 'Hammerstein fit']
+    assert [p.done for p in parts] == [0, 1, 2] and not any(p.finished for p in parts)
+    assert analysis.report['stiction']['detector']['judgeable']['ok']

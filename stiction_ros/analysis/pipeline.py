@@ -26,6 +26,9 @@ LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
 # Historian tags name the measured variable: LIC/LC = level, an integrating loop.
 _LEVEL_TAG = re.compile(r'(^|[^A-Z])L[IDR]*C', re.IGNORECASE)
 MIN_SIGNATURE_SAMPLES = 100
+# What ``analyze`` tells its ``stage`` callback before each part, in order; a
+# long record spends seconds in each.
+STAGES = ('learned detector', 'signatures', 'Hammerstein fit')
 # Longest run of invalid samples the signatures (never the fits) bridge.
 MAX_BRIDGE = 2
 
@@ -237,9 +240,16 @@ def run_detection(record, win, held, integrating, model_path=None):
 
 
 def analyze(record: Record, options: Options | None = None,
-            progress: Callable[[SearchProgress], object] | None = None) -> Analysis:
-    """Return the :class:`Analysis` of ``record``; ``progress`` hears each search level."""
+            progress: Callable[[SearchProgress], object] | None = None,
+            stage: Callable[[str], object] | None = None) -> Analysis:
+    """
+    Return the :class:`Analysis` of ``record``.
+
+    ``progress`` hears each level of a model search; ``stage`` the name (one
+    of :data:`STAGES`) of each other part as it starts.
+    """
     options = options or Options()
+    stage = stage or (lambda name: None)
     notes = list(record.notes)
     report = {
         'input': {str(k): _plain(v) for k, v in record.source.items()},
@@ -266,11 +276,14 @@ def analyze(record: Record, options: Options | None = None,
     detection = None
     if not analysis.fits:
         # No MV, or an MV no model could be fitted to: OP and PV decide.
+        stage('learned detector')
         detection = run_detection(record, win, held, integrating, options.detector)
         analysis.detection = detection
     # The signatures read the record as the detector did: PV paired again with the OP of
     # its own scan where the clock-skew check found the two tags stamped apart.
     read = held if detection is None or held is None else realigned(held, detection)
+    if win is not None:
+        stage('signatures')
     osc, sigs = run_signatures(read, record.sample_time, integrating)
     analysis.oscillation, analysis.signatures = osc, sigs
     analysis.signature_window, analysis.signature_inputs = win, read
@@ -305,6 +318,7 @@ def analyze(record: Record, options: Options | None = None,
             and detection.judge.ok and not detection.period_problem):
         # Sizing needs what judging needs, and a resolvable cycle if there is
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
+        stage('Hammerstein fit')
         ham = run_hammerstein(read, record.sample_time, integrating)
     report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
     # A size the user gave was not fitted: nothing to caution about.

@@ -332,7 +332,7 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
         if not note.startswith('excluded ') and note not in warned:
             say(f'note: {note}')
     analysis = analyze(record, pipeline_options,
-                       progress=SearchSteps(record, say))
+                       progress=SearchSteps(record, say), stage=_stages(say))
     report = analysis.report
     if options.explain:
         run_explain(analysis, options, say)
@@ -419,6 +419,16 @@ def search_levels(record: Record) -> int:
         levels += 1
         step = res * max(1, round(step / 5 / res))
     return levels
+
+
+def _stages(say: Say) -> Callable[[str], None]:
+    """Return the pipeline's ``stage`` callback: each part as a step of a bar."""
+    from stiction_ros.analysis.pipeline import STAGES
+
+    def stage(name: str) -> None:
+        # Never the last step: a finished step stays on screen, and the verdict follows.
+        say(Step('analysing', STAGES.index(name), len(STAGES), name))
+    return stage
 
 
 class SearchSteps:
