@@ -242,3 +242,22 @@ def test_whole_number_stamps_a_long_sample_apart_say_they_were_read_as_seconds(
         path.write_text('t (ms),op,pv\n' + rows)
         rec = load_record(path)
         assert rec.sample_time == step / 1000 and not any('milliseconds' in n for n in rec.notes)
+
+
+@pytest.mark.parametrize('header, units', [
+    ('t,OP (mA),PV', None), ('t,OP,PV', 's,mA,kg/h'), ('t,op,pv', None)])
+def test_a_controller_output_in_milliamps_is_read_as_percent_of_span(tmp_path, header, units):
+    k = np.arange(300)
+    ma = np.round(12 + 6 * np.sin(k / 9), 4)
+    rows = ''.join(f'{i},{ma[i]:.4f},{20 + np.cos(i / 9):.4f}\n' for i in k)
+    path = tmp_path / 'ma.csv'
+    path.write_text(header + '\n' + (units + '\n' if units else '') + rows)
+    rec = load_record(path)
+    said = [n for n in rec.notes if '4-20 mA read as 0-100 % of span' in n]
+    if header == 't,op,pv':
+        # No unit given: nothing guessed, the numbers are read as they are.
+        np.testing.assert_allclose(rec.signals['op'], ma)
+        assert not said
+    else:
+        np.testing.assert_allclose(rec.signals['op'], (ma - 4) * 100 / 16)
+        assert len(said) == 1

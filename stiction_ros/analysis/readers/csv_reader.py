@@ -15,6 +15,8 @@ spreadsheet shows them (the header is row 1).  An empty cell, ``nan``,
 units row and a description row under the header (no digit in the time cell,
 no number among the signals, data after them) are skipped, and said so;
 rows whose time falls on every row (a newest-first export) are read in reverse.
+OP or MV in mA (``OP (mA)``, or ``mA`` in the units row) is read as % of
+span, 4-20 mA being 0-100 %.
 
 Rows on one sample grid are placed on it, and a sample without a row is a
 gap.  Rows that are not (a historian's raw values, stored when they change;
@@ -30,7 +32,7 @@ import re
 import numpy as np
 from stiction_ros.analysis.readers import align
 from stiction_ros.analysis.readers.bad_words import BAD_WORDS
-from stiction_ros.analysis.readers.columns import match_columns
+from stiction_ros.analysis.readers.columns import match_columns, split_unit
 from stiction_ros.analysis.readers.modes import EXCLUDED, held, read_modes
 from stiction_ros.analysis.readers.stamps import decrease_hint, read_stamps, TIME_OF_DAY
 from stiction_ros.analysis.record import assemble, InputError
@@ -45,6 +47,8 @@ COVERED = 0.9
 # stiction measures of the reconstruction may be artefacts of the compression.
 COMPRESSED = 3.0
 MAX_SAMPLES = 50_000_000
+# A controller output given in mA ('OP (mA)') spans 4-20 mA.
+MA_LOW, MA_HIGH = 4.0, 20.0
 
 
 class _Cells:
@@ -122,7 +126,7 @@ def read_csv_record(path, text, columns=None, date_order=None):
     if not rows:
         raise InputError(f'{path}: a header row but no data')
     nos = [no for no, _ in lines[1:]]
-    rows, nos, label_notes = _skip_label_rows(rows, nos, cols)
+    rows, nos, label_notes, label_rows = _skip_label_rows(rows, nos, cols)
     for no, cells in zip(nos, rows):
         while len(cells) > len(header) and not cells[-1].strip():
             cells.pop()                  # a trailing delimiter, as some exports end rows
@@ -144,6 +148,7 @@ def read_csv_record(path, text, columns=None, date_order=None):
                                  for no, cells in zip(nos, rows)], dtype=np.float64)
         stored[name] = np.array([bool(cells[c].strip()) for cells in rows])
         marked[name] = sum(reader.bad.get(header[c], {}).values())
+    notes += _milliamps(header, cols.signals, values, label_rows)
     mode = None
     if cols.mode is not None:
         mode, mode_notes = read_modes(header[cols.mode], [cells[cols.mode] for cells in rows])
@@ -170,12 +175,12 @@ def _skip_label_rows(rows, nos, cols):
     while k < min(3, len(rows)) and labels(rows[k]):
         k += 1
     if not 0 < k <= 2 or k == len(rows):
-        return rows, nos, []
+        return rows, nos, [], []
     notes = []
     for no, cells in zip(nos[:k], rows[:k]):
         shown = ', '.join(repr(c.strip()) for c in cells if c.strip()) or 'empty cells'
         notes.append(f'row {no} read as units or descriptions, not data ({shown[:80]})')
-    return rows[k:], nos[k:], notes
+    return rows[k:], nos[k:], notes, rows[:k]
 
 
 def _parse(path, lines, delim):
@@ -232,6 +237,21 @@ def _time(path, header, cols, rows, nos, reader, check=True, date_order=None):
                          f'{nos[r - 1]}: {name} = {before}); time must increase'
                          + decrease_hint(stamps, t[r] - t[r - 1]))
     return stamps, stamps.notes + notes
+
+
+def _milliamps(header, signals, values, label_rows):
+    """Read OP or MV given in mA (header or units row) as % of span; return the notes."""
+    notes = []
+    for name in ('op', 'mv'):
+        c = signals.get(name)
+        units = [(split_unit(header[c])[1] or '')] if c is not None else []
+        units += [r[c] for r in label_rows if c is not None and c < len(r)]
+        if not any(u.strip().lower() == 'ma' for u in units):
+            continue
+        # Every threshold reads OP and MV in % of span; 4-20 mA is that span.
+        values[name] = (values[name] - MA_LOW) * (100.0 / (MA_HIGH - MA_LOW))
+        notes.append(f'{header[c]}: {MA_LOW:g}-{MA_HIGH:g} mA read as 0-100 % of span')
+    return notes
 
 
 def _shown(stamps, t, cells, r):
