@@ -6,7 +6,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy robustness probes shared-cycles detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy robustness gaps probes shared-cycles detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -60,6 +60,11 @@ accuracy: venv
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
 	  --json docs/robustness.json
+
+# Simulated loops cut by a gap, judged on the longest stretch and on every stretch pooled
+# (docs/GAPS.md; about 20 min on 2 cores).
+gaps: venv
+	$(PINNED) $(PY) -m stiction_ros.cli.gaps --markdown docs/GAPS.md --json docs/gaps.json
 
 # The verdict on loops the simulator never draws: equal-percentage valves tuned hot,
 # gap and error-squared level controllers, loops detuned past stability, controllers
