@@ -63,3 +63,66 @@ def test_the_study_scores_the_records_make_accuracy_scores(tmp_path):
         if r['rule'] == 'whole record':
             assert r['refused'] == 0 and r['differ_from_whole'] == 0
     assert '| 20% | every stretch pooled |' in md.read_text()
+
+
+def _gapped_csv(path, seed, gap=(0.45, 0.55)):
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    sc = draw_scenario(seed)
+    rec = simulate(sc)
+    n = len(rec['op'])
+    a, b = int(gap[0] * n), int(gap[1] * n)
+    lines = ['t,op,pv,sp']
+    for k in range(n):
+        cells = ('', '') if a <= k < b else (f'{rec["op"][k]:.6f}', f'{rec["pv"][k]:.6f}')
+        lines.append(f'{k * sc.sample_time:g},{cells[0]},{cells[1]},{rec["sp"][k]:.6f}')
+    path.write_text('\n'.join(lines) + '\n')
+    return sc, a, b
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('seed', [3_600_008, 3_600_015])
+def test_a_record_with_a_gap_is_judged_on_both_stretches_pooled(tmp_path, seed):
+    from stiction_ros.analysis.detection.detect import detect
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.readers import load_record
+    sc, a, b = _gapped_csv(tmp_path / 'gap.csv', seed)
+    record = load_record(tmp_path / 'gap.csv')
+    det = analyze(record, Options(hammerstein=False)).report['stiction']['detector']
+    # Each stretch read alone, as the analyzer reads a record of its own.
+    op, pv, sp = (record.signals[k] for k in ('op', 'pv', 'sp'))
+    n = record.samples
+    alone = [detect(op[lo:hi], pv[lo:hi], sp[lo:hi], sc.sample_time, sc.integrating)
+             for lo, hi in ((0, a), (b, n))]
+    table = det['stretches']
+    longest = 0 if a >= n - b else 1
+    assert [t['samples'] for t in table] == sorted([a, n - b], reverse=True)
+    assert [t['probability'] for t in table] == [alone[longest].probability,
+                                                 alone[1 - longest].probability]
+    want = pooled_probability([d.probability for d in alone], [a, n - b])
+    assert det['probability'] == pytest.approx(want, abs=1e-4)
+    assert det['evidence'][0].startswith('2 stretches between gaps, each judged alone')
+    # The evidence's times are the record's: within the stretch it came from.
+    lo, hi = (0, a) if longest == 0 else (b, n)
+    for start, end, _ in det['stuck']['stuck_periods_s']:
+        assert lo * sc.sample_time <= start < end <= hi * sc.sample_time
+
+
+def test_the_judged_line_says_which_stretches_the_answer_came_from():
+    from stiction_ros.app.report_text import judged_text
+    win = {'start_s': 0.0, 'end_s': 3990.0, 'samples': 400, 'held': 0}
+
+    def report(*parts):
+        return {'valid_samples': 700, 'signature_window': win, 'stiction': {'detector': {
+            'stretches': [{'start_s': s, 'end_s': e, 'samples': n, 'probability': p,
+                           'not_judged': c} for s, e, n, p, c in parts]}}}
+    both = report((0.0, 3990.0, 400, 0.8, ''), (5000.0, 7990.0, 300, 0.6, ''))
+    assert judged_text(both) == ('the detector pooled 2 stretches between gaps (700 of 700 '
+                                 'valid samples); the signatures read the longest, 400 '
+                                 'samples (0-3990 s)')
+    other = report((0.0, 3990.0, 400, None, 'pv_constant'), (5000.0, 7990.0, 300, 0.6, ''))
+    assert judged_text(other).startswith('the detector judged 300 of 700 valid samples '
+                                         '(5000-7990 s) alone: the longest stretch')
+    assert '(pv constant)' in judged_text(other)
+    short = report((0.0, 3990.0, 400, 0.8, ''), (5000.0, 6490.0, 150, None, 'too_short'))
+    assert judged_text(short).endswith('and 1 other stretch of 100 samples or more could not '
+                                       'be judged alone (too short)')

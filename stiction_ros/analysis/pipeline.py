@@ -7,13 +7,15 @@ Nothing here reads files or draws; ``stiction_ros.app.analyze`` does both.
 """
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import re
 
 import numpy as np
 
-from stiction_ros.analysis.detection import detect, Detection, Judgeable
+from stiction_ros.analysis.detection import detect, Detection, Judgeable, probability_text
+from stiction_ros.analysis.detection.detect import answer_of, reason_of
 from stiction_ros.analysis.detection.resolve import alternating, MIN_SAMPLES
+from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
@@ -149,17 +151,20 @@ def bridged_valid(record, max_gap=MAX_BRIDGE):
     return valid
 
 
+def stretches(record):
+    """Return (start, stop, samples held) of every stretch OP and PV are read on, longest first."""
+    if not (record.has('op') and record.has('pv')):
+        return []
+    found = [(a, b, int(np.sum(~record.valid[a:b]))) for a, b in runs(bridged_valid(record))
+             if b - a >= MIN_SIGNATURE_SAMPLES]
+    # A stable sort: of two as long, the earlier first.
+    return sorted(found, key=lambda w: w[1] - w[0], reverse=True)
+
+
 def signature_window(record):
     """Return (start, stop, samples held) of the longest stretch for the signatures, or None."""
-    if not (record.has('op') and record.has('pv')):
-        return None
-    stretches = runs(bridged_valid(record))
-    if not stretches:
-        return None
-    a, b = max(stretches, key=lambda r: r[1] - r[0])
-    if b - a < MIN_SIGNATURE_SAMPLES:
-        return None
-    return a, b, int(np.sum(~record.valid[a:b]))
+    found = stretches(record)
+    return found[0] if found else None
 
 
 def held_signals(record, a, b):
@@ -227,6 +232,44 @@ def realigned(held, detection):
     return {**held, 'op': op, 'pv': pv, 'sp': sp}
 
 
+def pool_stretches(record, detection, integrating, model_path=None):
+    """
+    Return ``detection`` (the longest stretch's) pooled with the record's other stretches.
+
+    Each stretch is judged alone and the judged ones are pooled
+    (:func:`stretches.pooled_probability`); the evidence is the longest judged
+    stretch's, under a line that names every stretch.  ``details['stretches']``
+    lists them.  A record of one stretch keeps ``detection`` as it is.
+    """
+    wins = stretches(record)
+    if len(wins) < 2:
+        return detection
+    read = [(wins[0], detection)] + [
+        (w, run_detection(record, w, held_signals(record, w[0], w[1]), integrating, model_path))
+        for w in wins[1:]]
+    table = [{'start_s': float(record.t[a]), 'end_s': float(record.t[b - 1]), 'samples': b - a,
+              'probability': d.probability, 'not_judged': '' if d.judge.ok else d.judge.code}
+             for (a, b, _), d in read]
+    judged = [(w, d) for w, d in read if d.probability is not None]
+    if not judged or (len(judged) == 1 and judged[0][1] is detection):
+        return replace(detection, details={**detection.details, 'stretches': table})
+    p = round(pooled_probability([d.probability for _, d in judged],
+                                 [w[1] - w[0] for w, _ in judged]), 4)
+    (a, b, _), base = judged[0]
+    parts = ', '.join(f'{t["start_s"]:g}-{t["end_s"]:g} s ({t["samples"]} samples) '
+                      + (probability_text(t['probability']) if t['probability'] is not None
+                         else 'not judged')
+                      for t in table)
+    line = (f'{len(wins)} stretches between gaps, each judged alone: {parts}; the judged ones '
+            f'pooled, their log-odds weighed by their samples: {probability_text(p)} (the '
+            f'evidence below is from {record.t[a]:g}-{record.t[b - 1]:g} s)')
+    answer = answer_of(p)
+    return replace(base, answer=answer, probability=p, reason=reason_of(p),
+                   evidence=[line, *base.evidence],
+                   details={**base.details, 'stretches': table,
+                            'balanced': answer == 'cannot tell'})
+
+
 def run_detection(record, win, held, integrating, model_path=None):
     """Return the :class:`Detection` on the signatures' stretch (cannot tell without one)."""
     if win is None:
@@ -236,7 +279,7 @@ def run_detection(record, win, held, integrating, model_path=None):
                           f'samples with OP and PV ({n} valid samples in all)')
         return Detection('cannot tell', None, judge.reason, judge)
     return detect(held['op'], held['pv'], held['sp'], record.sample_time, integrating,
-                  model_path)
+                  model_path, first_row=win[0])
 
 
 def analyze(record: Record, options: Options | None = None,
@@ -278,7 +321,8 @@ def analyze(record: Record, options: Options | None = None,
         # No MV, or an MV no model could be fitted to: OP and PV decide.
         stage('learned detector')
         detection = run_detection(record, win, held, integrating, options.detector)
-        analysis.detection = detection
+        # The verdict pools every stretch; the signatures and the size read the longest.
+        analysis.detection = pool_stretches(record, detection, integrating, options.detector)
     # The signatures read the record as the detector did: PV paired again with the OP of
     # its own scan where the clock-skew check found the two tags stamped apart.
     read = held if detection is None or held is None else realigned(held, detection)
@@ -320,7 +364,7 @@ def analyze(record: Record, options: Options | None = None,
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
         stage('Hammerstein fit')
         ham = run_hammerstein(read, record.sample_time, integrating)
-    report['stiction'] = combine(osc, sigs, report['fits'], ham, detection)
+    report['stiction'] = combine(osc, sigs, report['fits'], ham, analysis.detection)
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']
     if fitted:

@@ -168,12 +168,14 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
 
 def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: float,
            integrating: bool = False, model_path: str | None = None,
-           realign: bool = True) -> Detection:
+           realign: bool = True, first_row: int = 0) -> Detection:
     """
     Return the :class:`Detection` of one contiguous stretch of OP, PV (and SP).
 
     ``realign=False`` reads a skewed or lagged record as given (``make robustness``
-    compares the two; the analyzer always realigns).
+    compares the two; the analyzer always realigns).  ``first_row`` is the
+    record's row the stretch starts on: the evidence's times count from the
+    record's start.
     Raises :class:`model_file.DetectorFileError` when the model file is
     missing or damaged (never a silent fallback).
     """
@@ -204,6 +206,8 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
     rows = held.kept if held.count else None
     if skew.shift:
         rows = kept if rows is None else rows[kept]
+    if first_row:
+        rows = (np.arange(len(op)) if rows is None else np.asarray(rows)) + int(first_row)
     lines = evidence_lines(ev, sample_time, rows, fresh_only=bool(held.count))
     if held.count:
         # A row or two held in 751 is routine; a third of the record is not.
