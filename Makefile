@@ -62,7 +62,7 @@ robustness: venv
 	  --json docs/robustness.json
 
 # Simulated loops cut by a gap, judged on the longest stretch and on every stretch pooled
-# (docs/GAPS.md; about 20 min on 2 cores).
+# (docs/GAPS.md; about 17-20 min on 2 cores: 1 031 s measured 2026-12-06).
 gaps: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.gaps --markdown docs/GAPS.md --json docs/gaps.json
 

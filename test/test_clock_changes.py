@@ -4,7 +4,8 @@ Local stamps without an offset across a change of summer time (``readers/dayligh
 The reference is the time zone database: real instants a step apart are
 written as each zone's local clock reads them, without the offset, and the
 reader must give back the true seconds between them.  Jumps that only look
-like a change of clocks (a weekday, the afternoon) keep their old reading:
+like a change of clocks (a weekday, the afternoon, a Sunday in July) keep their
+old reading:
 a gap forward, a refusal back.
 """
 
@@ -84,12 +85,17 @@ def plain(start, step, n):
     return [t0 + timedelta(seconds=step * k) for k in range(n)]
 
 
+# Each jump lands on a whole hour, as a change of clocks would: only the date and the
+# hour tell them apart (no zone changes its clocks then).
 @pytest.mark.parametrize('start, why', [
-    ('2026-03-25 01:30:00', 'a Wednesday'),
-    ('2026-03-29 13:30:00', 'the afternoon'),
+    ('2026-03-25 01:00:00', 'a Wednesday'),
+    ('2026-03-29 13:00:00', 'the afternoon of a day clocks change'),
+    ('2026-07-12 01:00:00', 'a Sunday in July'),
 ])
 def test_an_hours_jump_where_no_clock_changes_stays_a_gap(tmp_path, start, why):
     stamps = shifted(plain(start, 10.0, 720), 360, 1)
+    assert stamps[360] - stamps[359] == timedelta(seconds=3610)
+    assert stamps[360].minute == stamps[360].second == 0
     text, op = csv_of(stamps)
     rec = load_record(write_text(tmp_path / 'gap.csv', text))
     assert rec.samples == 720 + 360, why
@@ -98,11 +104,26 @@ def test_an_hours_jump_where_no_clock_changes_stays_a_gap(tmp_path, start, why):
     assert not rec.valid[360:720].any()
 
 
-def test_an_hour_back_where_no_clock_changes_is_refused(tmp_path):
-    stamps = shifted(plain('2026-10-21 02:30:00', 10.0, 720), 360, -1)
+@pytest.mark.parametrize('start', ['2026-10-21 02:00:00', '2026-01-11 02:00:00'])
+def test_an_hour_back_where_no_clock_changes_is_refused(tmp_path, start):
+    # A Wednesday in October, a Sunday in January: two exports joined with an hour overlapping.
+    stamps = shifted(plain(start, 10.0, 720), 360, -1)
+    assert (stamps[359].minute, stamps[360].minute, stamps[360].second) == (59, 0, 0)
     text, _ = csv_of(stamps)
     with pytest.raises(InputError, match='does not increase.*export the stamps in UTC'):
         load_record(write_text(tmp_path / 'back.csv', text))
+
+
+@needs_zones
+def test_a_newest_first_export_across_the_autumn_change_is_read(tmp_path):
+    stamps = local_stamps('Europe/Berlin', ZONES['Europe/Berlin'][1], 10.0, 720)
+    text, op = csv_of(stamps)
+    head, *rows = text.splitlines()
+    rec = load_record(write_text(tmp_path / 'newest.csv', '\n'.join([head, *rows[::-1]]) + '\n'))
+    assert rec.samples == 720 and rec.valid.all()
+    np.testing.assert_array_equal(rec.signals['op'], op)
+    assert any('newest first' in n for n in rec.notes)
+    assert any('clocks went back' in n for n in rec.notes)
 
 
 def test_a_jump_of_other_than_an_hour_is_no_change_of_clocks():

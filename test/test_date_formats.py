@@ -85,3 +85,16 @@ def test_the_command_line_takes_the_order_and_checks_it(tmp_path, capsys):
 def test_a_historian_export_says_the_order_given_is_not_used(tmp_path):
     rec = load_record(write_text(tmp_path / 'h.txt', historian_text(n=120)), date_order='dmy')
     assert any(n.startswith('--date-order ignored') for n in rec.notes)
+
+
+def test_the_order_given_overrides_a_convention_but_not_a_proof(tmp_path):
+    # Australian Excel: day first with AM/PM, which the reader otherwise takes for US.
+    au = csv_file(tmp_path / 'au.csv', clock('2024-06-13 14:00:00', '%d/%m/%Y %I:%M:%S %p'))
+    with pytest.raises(InputError, match='mix day/month and month/day'):
+        load_record(au)
+    assert load_record(au, date_order='dmy').start_time == '2024-06-13T14:00:00'
+    with pytest.raises(InputError, match='13 is no month'):
+        load_record(au, date_order='mdy')
+    dotted = csv_file(tmp_path / 'de.csv', clock('2026-01-03 12:00:00', '%d.%m.%Y %H:%M:%S'))
+    assert load_record(dotted).start_time == '2026-01-03T12:00:00'
+    assert load_record(dotted, date_order='mdy').start_time == '2026-03-01T12:00:00'

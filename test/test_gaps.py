@@ -103,6 +103,7 @@ def test_a_record_with_a_gap_is_judged_on_both_stretches_pooled(tmp_path, seed):
     assert det['evidence'][0].startswith('2 stretches between gaps, each judged alone')
     # The evidence's times are the record's: within the stretch it came from.
     lo, hi = (0, a) if longest == 0 else (b, n)
+    assert det['stuck']['stuck_periods_s']
     for start, end, _ in det['stuck']['stuck_periods_s']:
         assert lo * sc.sample_time <= start < end <= hi * sc.sample_time
 
@@ -126,3 +127,28 @@ def test_the_judged_line_says_which_stretches_the_answer_came_from():
     short = report((0.0, 3990.0, 400, 0.8, ''), (5000.0, 6490.0, 150, None, 'too_short'))
     assert judged_text(short).endswith('and 1 other stretch of 100 samples or more could not '
                                        'be judged alone (too short)')
+
+
+@pytest.mark.slow
+def test_a_longest_stretch_that_cannot_be_judged_leaves_the_answer_to_the_others(tmp_path):
+    from stiction_ros.analysis.detection.detect import detect
+    from stiction_ros.analysis.pipeline import analyze, Options
+    from stiction_ros.analysis.readers import load_record
+    from stiction_ros.app.report_text import judged_text
+    sc, a, b = _gapped_csv(tmp_path / 'gap.csv', 3_600_008, gap=(0.6, 0.65))
+    # The transmitter froze over the longest stretch: PV reads one value there.
+    lines = (tmp_path / 'gap.csv').read_text().splitlines()
+    for k in range(1, a + 1):
+        t, op, _, sp = lines[k].split(',')
+        lines[k] = f'{t},{op},25.0,{sp}'
+    (tmp_path / 'gap.csv').write_text('\n'.join(lines) + '\n')
+    record = load_record(tmp_path / 'gap.csv')
+    report = analyze(record, Options(hammerstein=False)).report
+    st = report['stiction']
+    op, pv, sp = (record.signals[k] for k in ('op', 'pv', 'sp'))
+    alone = detect(op[b:], pv[b:], sp[b:], sc.sample_time, sc.integrating)
+    assert [t['not_judged'] for t in st['detector']['stretches']] == ['pv_constant', '']
+    assert st['probability'] == alone.probability and st['answer'] == alone.answer
+    # The size would read the frozen stretch, so none is given, and the reason says why.
+    assert st['apparent_S'] is None and 'constant' in st['size_withheld'].lower()
+    assert judged_text(report).startswith(f'the detector judged {record.samples - b} of ')

@@ -248,14 +248,17 @@ def pool_stretches(record, detection, integrating, model_path=None):
         (w, run_detection(record, w, held_signals(record, w[0], w[1]), integrating, model_path))
         for w in wins[1:]]
     table = [{'start_s': float(record.t[a]), 'end_s': float(record.t[b - 1]), 'samples': b - a,
-              'probability': d.probability, 'not_judged': '' if d.judge.ok else d.judge.code}
+              'probability': d.probability, 'not_judged': '' if d.judge.ok else d.judge.code,
+              'held_rows': int(d.details.get('held_rows', 0))}
              for (a, b, _), d in read]
     judged = [(w, d) for w, d in read if d.probability is not None]
     if not judged or (len(judged) == 1 and judged[0][1] is detection):
         return replace(detection, details={**detection.details, 'stretches': table})
-    p = round(pooled_probability([d.probability for _, d in judged],
-                                 [w[1] - w[0] for w, _ in judged]), 4)
     (a, b, _), base = judged[0]
+    # Decided on the pooled value itself, as detect decides on its own; one stretch
+    # judged alone keeps its own probability.
+    p = (base.probability if len(judged) == 1 else
+         pooled_probability([d.probability for _, d in judged], [w[1] - w[0] for w, _ in judged]))
     parts = ', '.join(f'{t["start_s"]:g}-{t["end_s"]:g} s ({t["samples"]} samples) '
                       + (probability_text(t['probability']) if t['probability'] is not None
                          else 'not judged')
@@ -264,7 +267,7 @@ def pool_stretches(record, detection, integrating, model_path=None):
             f'pooled, their log-odds weighed by their samples: {probability_text(p)} (the '
             f'evidence below is from {record.t[a]:g}-{record.t[b - 1]:g} s)')
     answer = answer_of(p)
-    return replace(base, answer=answer, probability=p, reason=reason_of(p),
+    return replace(base, answer=answer, probability=round(p, 4), reason=reason_of(p),
                    evidence=[line, *base.evidence],
                    details={**base.details, 'stretches': table,
                             'balanced': answer == 'cannot tell'})
@@ -364,7 +367,8 @@ def analyze(record: Record, options: Options | None = None,
         # one: an under-sampled limit cycle aliases into a band 10x too wide.
         stage('Hammerstein fit')
         ham = run_hammerstein(read, record.sample_time, integrating)
-    report['stiction'] = combine(osc, sigs, report['fits'], ham, analysis.detection)
+    report['stiction'] = combine(osc, sigs, report['fits'], ham, analysis.detection,
+                                 sizing=detection)
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']
     if fitted:

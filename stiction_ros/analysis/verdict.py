@@ -66,7 +66,7 @@ def from_signatures(osc, sigs, weights=None, threshold=None):
 ANSWER = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
 
 
-def combine(osc, sigs, fits, hammerstein=None, detection=None):
+def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
     """
     Return the report's ``stiction`` section.
 
@@ -74,11 +74,14 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None):
     learned detector's :class:`Detection`) does, and the rule-based vote of
     :func:`from_signatures` is kept beside it as ``signature_vote``.  A size
     is given only when the record can be judged and any oscillation in it
-    is resolvable.
+    is resolvable; ``sizing`` (default ``detection``) is the detection of
+    the stretch the signatures and the size read, where the answer pools
+    several.
     """
     apparent = None
     ell = sigs.get('ellipse')
-    sized = detection is None or (detection.judge.ok and not detection.period_problem)
+    sizing = detection if sizing is None else sizing
+    sized = sizing is None or (sizing.judge.ok and not sizing.period_problem)
     # A PV-OP map that is no ellipse has a width, but not one of a valve's band.
     if ell is not None and ell.value is not None and sized and not no_ellipse(ell):
         apparent = ell.value
@@ -95,7 +98,7 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None):
             score = detection.probability if detection.probability is not None else 0.0
             extra['detector'] = detection.to_json()
             if not sized:
-                extra['size_withheld'] = (detection.period_problem or detection.judge.reason)
+                extra['size_withheld'] = (sizing.period_problem or sizing.judge.reason)
         else:
             detected, score, why = vote
         if hammerstein is not None and getattr(hammerstein, 'reliable', False) and sized:

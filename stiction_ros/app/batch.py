@@ -134,7 +134,7 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         ``probability`` (OP/PV only), ``score`` (None where the record could not be
         judged), ``fits``, ``summary``, ``warnings`` (what the input's reader
         said, such as a bag that ends early; empty when nothing), ``notes`` (how
-        the file was read and analysed, as the terminal's ``note:`` lines: a column
+        the file was read, as the terminal's ``note:`` lines: a column
         ignored, cells read as missing, a change of clocks) (and
         ``why_not``, ``effect``, ``report``) or ``error``; ``seconds``.
 
@@ -150,7 +150,8 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
     try:
         # Each worker is one process already: its --explain runs on one thread.
         one = replace(options, input=str(path), json_path=None, html_path=None, jobs=1)
-        report = analyze_file(one).report
+        analysis = analyze_file(one)
+        report = analysis.report
     except (StictionError, OSError) as exc:
         row['error'] = str(exc)
     else:
@@ -165,7 +166,7 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
                    fits=[{k: f[k] for k in ('model', 'S', 'J', 'mse')} for f in report['fits']],
                    summary=summary_line(report),
                    warnings=warnings,
-                   notes=[n for n in report.get('notes') or []
+                   notes=[n for n in analysis.record.notes
                           if not n.startswith('excluded ') and n not in warnings])
         if 'mismatch' in report:
             row['effect'] = report['mismatch']['effect']

@@ -72,8 +72,9 @@ def answers(parts: list) -> tuple[float, float]:
     """Return the longest stretch's probability and the pooled one (NaN: not judged)."""
     longest = max(parts, key=lambda s: s[0])[1]
     judged = [(n, p) for n, p in parts if p is not None]
-    pooled = (pooled_probability([p for _, p in judged], [n for n, _ in judged])
-              if judged else None)
+    # As the analyzer pools (pipeline.pool_stretches): one judged stretch keeps its own.
+    pooled = (None if not judged else judged[0][1] if len(judged) == 1 else
+              pooled_probability([p for _, p in judged], [n for n, _ in judged]))
     return (np.nan if longest is None else longest), (np.nan if pooled is None else pooled)
 
 

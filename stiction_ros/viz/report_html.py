@@ -242,8 +242,10 @@ def render(report: dict, figures: list) -> str:
     if st.get('oscillation'):
         parts += _oscillation(st['oscillation'])
     if st.get('signatures'):
-        parts += _signatures(st['signatures'],
-                             (st.get('detector') or {}).get('held_rows', 0))
+        # The signatures read the longest stretch: its held rows, where the answer pools several.
+        det = st.get('detector') or {}
+        parts += _signatures(st['signatures'], (det.get('stretches') or [det])[0].get(
+            'held_rows', 0))
     if report.get('mismatch'):
         parts += explain_parts(report)
     if st.get('hammerstein'):

@@ -33,6 +33,7 @@ import numpy as np
 from stiction_ros.analysis.readers import align
 from stiction_ros.analysis.readers.bad_words import BAD_WORDS
 from stiction_ros.analysis.readers.columns import match_columns, split_unit
+from stiction_ros.analysis.readers.daylight import HOUR
 from stiction_ros.analysis.readers.modes import EXCLUDED, held, read_modes
 from stiction_ros.analysis.readers.stamps import decrease_hint, read_stamps, TIME_OF_DAY
 from stiction_ros.analysis.record import assemble, InputError
@@ -203,7 +204,12 @@ def _newest_first(path, header, cols, rows, nos, reader, date_order):
     except InputError:
         return False
     steps = np.diff(t[0].seconds)
-    return bool(np.all(steps < 0))
+    back = steps < 0
+    # Read newest first, the hour clocks repeat in autumn is one step forward of under an
+    # hour among steps back; clock_changes reads it once the rows run oldest first.
+    ahead = steps[~back]
+    return bool(np.all(back) or (len(ahead) <= 2 and np.mean(back) > 0.9
+                                 and np.all((ahead > 0) & (ahead < HOUR))))
 
 
 def _time(path, header, cols, rows, nos, reader, check=True, date_order=None):

@@ -3,24 +3,24 @@ Local stamps without an offset across a change of summer time.
 
 A historian that exports local time without an offset writes the hour
 clocks skip in spring as a jump of an hour with no row missing, and the
-hour they repeat in autumn as a step back of an hour.  Both are taken for
-a change of clocks only where nothing else fits: the jump or step back is
-one hour beside the record's own step, it crosses a whole hour from
-midnight to 04:00 (where every zone with summer time changes its clocks),
-and that hour falls on a Sunday (a Friday in Israel's spring).  The later
-stamps are then moved by the hour, so that the rows stay contiguous, and
-the record says so.  Anything else stays as it was: a gap, or a refusal.
+hour they repeat in autumn as a step back of an hour.  Such a jump or step
+is taken for a change of clocks only where nothing else fits: it is one
+hour beside the record's own step, it crosses a whole hour, and at that
+local date and hour some zone of the time zone database (Python's
+``zoneinfo``) does change its clocks by an hour in that direction.  The
+later stamps are then moved by the hour, so that the rows stay contiguous,
+and the record says so.  Anything else stays as it was: a gap, or a
+refusal.  Without a zone database nothing is moved.
 """
 
-from datetime import datetime, timedelta
+from datetime import datetime, timedelta, timezone
+import functools
 
 import numpy as np
 
 HOUR = 3600.0
-# The clocks change at a whole hour from 00:00 (Chile) to 04:00 (the end of
-# summer time in eastern Europe, on the summer clock).
-FIRST_HOUR, LAST_HOUR = 0, 4
-SUNDAY, FRIDAY = 6, 4
+_SECOND = timedelta(seconds=1)
+_ONE_HOUR = timedelta(hours=1)
 
 
 def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]]:
@@ -32,7 +32,8 @@ def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]
     """
     steps = np.diff(t)
     forward = steps[steps > 0]
-    if len(t) < 3 or not len(forward):
+    if len(t) < 3 or len(forward) <= len(steps) // 2:
+        # Rows that run newest first are turned round before this reads them.
         return t, []
     step = float(np.median(forward))
     # Half a step of slack: a historian's stamps jitter by less.
@@ -56,17 +57,58 @@ def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]
 
 def _boundary(before: datetime, after: datetime, shift: float) -> datetime | None:
     """Return the whole hour on the old clock at which the clocks changed, or None."""
-    # On the old clock the change happens at the first whole hour after ``before``;
-    # ``after`` (on the new clock) must lie within one step of it.
-    hour = before.replace(minute=0, second=0, microsecond=0) + timedelta(hours=1)
+    # On the old clock the change happens at the first whole hour after ``before``.
+    hour = before.replace(minute=0, second=0, microsecond=0) + _ONE_HOUR
     if shift < 0:
-        # Forward: the new clock reads an hour more than the old one at the change.
-        ok = hour + timedelta(hours=1) <= after
+        # Forward: the new clock reads an hour more than the old one from the change on.
+        ok = hour + _ONE_HOUR <= after
+        changes = _goes_forward
     else:
-        # Back: the new clock reads an hour less; ``after`` falls within the repeated hour.
-        ok = hour - timedelta(hours=1) <= after < hour
-    if not ok or not FIRST_HOUR <= hour.hour <= LAST_HOUR:
-        return None
-    if hour.weekday() == SUNDAY or (shift < 0 and hour.weekday() == FRIDAY):
+        # Back: ``after`` falls within the hour the new clock repeats.
+        ok = hour - _ONE_HOUR <= after < hour
+        changes = _goes_back
+    if ok and any(changes(hour, tz) for tz in _zones()):
         return hour
     return None
+
+
+@functools.lru_cache(maxsize=1)
+def _zones() -> tuple:
+    """Return every zone of the time zone database (none where it is missing)."""
+    try:
+        from zoneinfo import available_timezones, ZoneInfo
+        return tuple(ZoneInfo(name) for name in sorted(available_timezones()))
+    except Exception:   # pragma: no cover - a Python without a zone database
+        return ()
+
+
+def _exists(t: datetime, tz) -> bool:
+    """Return whether the local time ``t`` is shown by the clocks of ``tz``."""
+    back = t.replace(tzinfo=tz).astimezone(timezone.utc).astimezone(tz)
+    return back.replace(tzinfo=None) == t
+
+
+def _twice(t: datetime, tz) -> bool:
+    """Return whether the clocks of ``tz`` show the local time ``t`` twice."""
+    return t.replace(tzinfo=tz, fold=0).utcoffset() != t.replace(tzinfo=tz, fold=1).utcoffset()
+
+
+def _goes_forward(hour: datetime, tz) -> bool:
+    """Return whether ``tz`` skips the hour from ``hour`` on, by one hour."""
+    if not (_exists(hour - _SECOND, tz) and not _exists(hour, tz)
+            and not _exists(hour + _ONE_HOUR - _SECOND, tz) and _exists(hour + _ONE_HOUR, tz)):
+        return False
+    gained = (hour + _ONE_HOUR).replace(tzinfo=tz).utcoffset() - \
+        (hour - _SECOND).replace(tzinfo=tz).utcoffset()
+    return gained == _ONE_HOUR
+
+
+def _goes_back(hour: datetime, tz) -> bool:
+    """Return whether ``tz`` repeats the hour before ``hour`` (on its old clock), by one hour."""
+    first = hour - _ONE_HOUR
+    if not (_twice(first, tz) and not _twice(first - _SECOND, tz)
+            and _twice(hour - _SECOND, tz) and not _twice(hour, tz)):
+        return False
+    lost = first.replace(tzinfo=tz, fold=0).utcoffset() - \
+        first.replace(tzinfo=tz, fold=1).utcoffset()
+    return lost == _ONE_HOUR

@@ -98,7 +98,9 @@ def read_stamps(path: object, name: str, unit: str | None, cells: list[str],
     (decimal commas included) and raises its error for anything else;
     ``is_number(text)`` says whether it would read one.  ``date_order``
     (``'dmy'`` or ``'mdy'``, ``--date-order``) says which of day and month
-    comes first where no date proves it; a date that contradicts it is refused.
+    comes first where no date proves it, and overrides the conventions (dots
+    day first, AM/PM month first, as US Excel writes); a day over 12 where it
+    puts the month is refused.
     """
     first = next((c.strip() for c in cells if c.strip()), '')
     if not first or is_number(first):
