@@ -263,12 +263,7 @@ def _from_month_name(path, name, row, cell, m):
             y += 2000 if y < CENTURY_PIVOT else 1900
     else:
         d, y = int(m['d2']), int(m['y2'])
-    h, mi, s, us = _clock(path, name, row, cell, m) if m['H'] else (0, 0, 0, 0)
-    try:
-        stamp = datetime(y, month, d, h, mi, s, us)
-    except ValueError as err:
-        _refuse(path, name, row, cell, str(err))
-    return _zoned(stamp, m['z'])
+    return _stamp(path, name, row, cell, m, (y, month, d))
 
 
 def _month_word(mon):
@@ -287,9 +282,14 @@ def _from_match(path, name, row, cell, m, order):
         d, mo, y = a, b, c
     else:
         mo, d, y = a, b, c
+    return _stamp(path, name, row, cell, m, (y, mo, d))
+
+
+def _stamp(path, name, row, cell, m, date):
+    """Return the stamp of ``date`` (year, month, day) at the time of day ``m`` holds."""
     h, mi, s, us = _clock(path, name, row, cell, m) if m['H'] else (0, 0, 0, 0)
     try:
-        stamp = datetime(y, mo, d, h, mi, s, us)
+        stamp = datetime(*date, h, mi, s, us)
     except ValueError as err:
         _refuse(path, name, row, cell, str(err))
     return _zoned(stamp, m['z'])
