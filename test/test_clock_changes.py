@@ -150,3 +150,16 @@ def test_a_historian_export_across_the_change_is_read_on_its_grid(tmp_path):
     assert any('clocks went forward an hour at 2024-03-31 02:00' in n for n in rec.notes)
     pv = np.array([float(line.split('\t')[2]) for line in lines[5:5 + 720]])
     np.testing.assert_array_equal(rec.signals['pv'], pv)
+
+
+@needs_zones
+def test_excel_serial_dates_across_the_change_read_every_row_as_one_stretch(tmp_path):
+    stamps = local_stamps('America/New_York', ZONES['America/New_York'][0], 10.0, 720)
+    epoch = datetime(1899, 12, 30)
+    days = [f'{(s - epoch).total_seconds() / 86400:.8f}' for s in stamps]
+    text, op = csv_of(stamps)
+    rows = [f'{d},{line.split(",", 1)[1]}' for d, line in zip(days, text.splitlines()[1:])]
+    rec = load_record(write_text(tmp_path / 'excel.csv', 'Time,op,pv\n' + '\n'.join(rows)))
+    assert rec.samples == 720 and rec.valid.all()
+    np.testing.assert_array_equal(rec.signals['op'], op)
+    assert any('clocks went forward' in n for n in rec.notes)

@@ -40,8 +40,9 @@ def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]
     slack = 0.5 * step + 1e-6
     out, notes = t.copy(), []
     for i in np.flatnonzero(np.abs(np.abs(steps - step) - HOUR) <= slack):
-        before = start + timedelta(seconds=float(t[i]))
-        after = start + timedelta(seconds=float(t[i + 1]))
+        # To the millisecond: Excel's serial days carry a float's error in the seconds.
+        before = start + timedelta(seconds=round(float(t[i]), 3))
+        after = start + timedelta(seconds=round(float(t[i + 1]), 3))
         shift = -HOUR if steps[i] > step else HOUR
         boundary = _boundary(before, after, shift)
         if boundary is None:

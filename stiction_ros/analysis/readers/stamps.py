@@ -135,7 +135,9 @@ def _numbers(path, name, unit, cells, rows, number):
         notes.append(f'{name}: numbers near {first:.6g} stepping by under a hundredth read as '
                      f'Excel serial dates (days since 1899-12-30: {start:%Y-%m-%d %H:%M:%S} '
                      "on); name the column 'time (s)' if they are seconds")
-        return Stamps(t, start, 'datetime', notes)
+        # Excel keeps the local clock's reading, summer time and all.
+        t, changes = clock_changes(t, start)
+        return Stamps(t, start, 'datetime', notes + changes)
     elif first >= UNIX_END:
         raise InputError(f'{path}: column {name!r}: {first:g} is no time in seconds; give its '
                          "unit in the header, e.g. 'time (us)' or 'time (ns)'")
