@@ -87,14 +87,31 @@ def test_a_historian_export_says_the_order_given_is_not_used(tmp_path):
     assert any(n.startswith('--date-order ignored') for n in rec.notes)
 
 
-def test_the_order_given_overrides_a_convention_but_not_a_proof(tmp_path):
-    # Australian Excel: day first with AM/PM, which the reader otherwise takes for US.
+def test_a_convention_reads_with_a_note_the_order_given_overrides_it_and_a_proof_wins(
+        tmp_path):
+    # Australian Excel: day first with AM/PM; a day over 12 proves it, whatever the AM/PM.
     au = csv_file(tmp_path / 'au.csv', clock('2024-06-13 14:00:00', '%d/%m/%Y %I:%M:%S %p'))
-    with pytest.raises(InputError, match='mix day/month and month/day'):
-        load_record(au)
-    assert load_record(au, date_order='dmy').start_time == '2024-06-13T14:00:00'
+    rec = load_record(au)
+    assert rec.start_time == '2024-06-13T14:00:00'
+    assert not any('no day over 12' in n for n in rec.notes)
     with pytest.raises(InputError, match='13 is no month'):
         load_record(au, date_order='mdy')
+    # 1 March in a UK export with AM/PM: nothing proves the order, so it is said.
+    uk = csv_file(tmp_path / 'uk.csv', clock('2026-03-01 12:00:00', '%d/%m/%Y %I:%M:%S %p'))
+    rec = load_record(uk)
+    assert rec.start_time == '2026-01-03T12:00:00'
+    assert any('read month first, as US Excel writes dates with AM/PM; pass --date-order dmy'
+               in n for n in rec.notes)
+    assert load_record(uk, date_order='dmy').start_time == '2026-03-01T12:00:00'
     dotted = csv_file(tmp_path / 'de.csv', clock('2026-01-03 12:00:00', '%d.%m.%Y %H:%M:%S'))
-    assert load_record(dotted).start_time == '2026-01-03T12:00:00'
+    rec = load_record(dotted)
+    assert rec.start_time == '2026-01-03T12:00:00'
+    assert any('read day first, as dotted dates are written' in n for n in rec.notes)
     assert load_record(dotted, date_order='mdy').start_time == '2026-03-01T12:00:00'
+
+
+@pytest.mark.parametrize('fmt', ['%d-%b-%y %H:%M', '%Y-%m-%d %H:%M', '%m/%d/%Y %I:%M %p'])
+def test_stamps_without_seconds_at_a_faster_sampling_name_the_cause(tmp_path, fmt):
+    path = csv_file(tmp_path / 's.csv', clock('2024-06-13 14:00:00', fmt, step=10))
+    with pytest.raises(InputError, match='does not increase.*the stamps have no seconds'):
+        load_record(path)

@@ -126,3 +126,17 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
         assert (a1, b1, t1) == (a0 + shift, b0 + shift, t0)
     first = before['stuck_periods_s'][0][0]
     assert any(f'stuck period {first + shift:.0f} s' in line for line in held.evidence)
+
+
+def test_too_short_after_the_holds_says_how_many_rows_the_stretch_had():
+    sc, rec = _healthy_record()
+    held = np.zeros(330, bool)
+    held[1::3] = held[2::9] = True          # 147 of 330 rows: under half
+    op, pv, sp = _hold({k: np.asarray(rec[k])[:330] for k in ('op', 'pv', 'sp')}, held)
+    fresh = int((~held).sum())
+    assert fresh < 200 and held.mean() < 0.5
+    d = detect(op, pv, sp, sc.sample_time, sc.integrating)
+    assert d.judge.code == 'too_short'
+    assert d.judge.reason == (f'too short: {fresh} usable samples, at least 200 needed '
+                              f"({int(held.sum())} of the stretch's 330 rows repeat the "
+                              'previous row exactly in OP and PV: historian holds, not read)')

@@ -95,7 +95,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--date-order', choices=DATE_ORDERS, default=None,
                    help="a CSV's dates where no day over 12 shows the order: dmy (day first, "
                         '03/01/2026 is 3 January) or mdy (month first, 1 March); without it '
-                        'such dates are refused')
+                        'such dates are refused, or read by a convention with a note (dots '
+                        'day first, AM/PM month first)')
     p.add_argument('--loop-type', default='auto', choices=LOOP_TYPES,
                    help='auto: integrating when the tag names a level loop (LIC)')
     p.add_argument('--detector', metavar='FILE', default=None,

@@ -200,6 +200,11 @@ def detect(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, sample_time: f
             skew = replace(timing.alignment(op, pv, sp), shift=0, lag=0.0)
         holds['timing'] = skew.to_json()
         judge = judgeable(op, pv, sample_time, sp)
+        if judge.code == 'too_short' and held.count:
+            # The count is of fresh rows; the stretch the engineer sees holds more.
+            judge = replace(judge, reason=f"{judge.reason} ({held.count} of the stretch's "
+                            f'{len(held.held)} rows repeat the previous row '
+                            'exactly in OP and PV: historian holds, not read)')
     if not judge.ok:
         return Detection('cannot tell', None, judge.reason, judge, model=info, details=holds)
     vec, ev = extract(op, pv, sp, sample_time, integrating)

@@ -48,6 +48,8 @@ COVERED = 0.9
 # stiction measures of the reconstruction may be artefacts of the compression.
 COMPRESSED = 3.0
 MAX_SAMPLES = 50_000_000
+# A time of day without seconds ('14:00', '2:00 PM') at the end of a stamp.
+NO_SECONDS = re.compile(r'(?<![:\d])\d{1,2}:\d{2}(\s*[AaPp][Mm])?$')
 # A controller output given in mA ('OP (mA)') spans 4-20 mA.
 MA_LOW, MA_HIGH = 4.0, 20.0
 
@@ -239,9 +241,12 @@ def _time(path, header, cols, rows, nos, reader, check=True, date_order=None):
     if len(back):
         r = back[0] + 1
         now, before = _shown(stamps, t, cells, r), _shown(stamps, t, cells, r - 1)
+        same = t[r] == t[r - 1] and NO_SECONDS.search(cells[r].strip())
         raise InputError(f'{path}: row {nos[r]}: {name} = {now} does not increase (row '
                          f'{nos[r - 1]}: {name} = {before}); time must increase'
-                         + decrease_hint(stamps, t[r] - t[r - 1]))
+                         + ('; the stamps have no seconds, so rows under a minute apart share '
+                            'one: export them with seconds' if same else
+                            decrease_hint(stamps, t[r] - t[r - 1])))
     return stamps, stamps.notes + notes
 
 

@@ -10,8 +10,9 @@ Text is a date and time: ISO 8601 (``2026-03-01 12:00:00``,
 ``2026-03-01T12:00:00Z``, ``2026-03-01T12:00:00+01:00``, fractions of a
 second), ``01.03.2026 12:00:00`` (day first, as German and most European
 locales write), ``2026/03/01 12:00:00``, and ``03/01/2026 1:00:00 PM``
-where a day over 12 or an AM/PM proves the order of month and day (US
-Excel: month first) or ``--date-order`` says; ``13-Jun-24 14:00``,
+where a day over 12 proves the order of month and day or ``--date-order``
+says it; where neither does, dots are read day first and an AM/PM month
+first (US Excel), each with a note, and other dates are refused; ``13-Jun-24 14:00``,
 ``13 Jun 2024`` and ``Jun 13, 2024 2:00 PM`` (English month names, a
 two-digit year as Excel reads it); or a time of day alone.  A zone in a header
 (``Timestamp (UTC)``) applies to stamps that have none.  Stamps with
@@ -204,40 +205,42 @@ def _dates(path, name, cells, rows, zone, given=None):
             continue
         stamps.append(stamp)
     if parsed:
-        order = _date_order(path, name, parsed, given)
+        order, note = _date_order(path, name, parsed, given)
         it = iter(parsed)
         stamps = [s if s is not None else _from_match(path, name, *next(it), order)
                   for s in stamps]
-    return _relative(path, name, stamps, rows, cells, zone, 'datetime')
+    out = _relative(path, name, stamps, rows, cells, zone, 'datetime')
+    if parsed and note:
+        out.notes.insert(0, note)
+    return out
 
 
 def _date_order(path, name, parsed, given=None):
-    # Which of the first two fields is the day: proven by a value over 12 or an
-    # AM/PM (US Excel), or given (--date-order); never guessed.
+    """Return the order of day and month, and a note where a convention chose it."""
+    # Proven by a value over 12, or given (--date-order); else a convention, said so.
     if given is not None:
-        return _given_order(path, name, parsed, given)
-    dotted = day_first = month_first = False
+        return _given_order(path, name, parsed, given), ''
+    dotted = day_first = month_first = ampm = False
     for _, _, m in parsed:
         if len(m['a']) == 4:
             continue
-        if m['sep'] == '.':
-            dotted = True
-        if int(m['a']) > 12:
-            day_first = True
-        if int(m['b']) > 12 or m['ap']:
-            month_first = True
-    if dotted and not month_first:
-        return 'dmy'
-    if day_first and month_first:
-        row, cell, _ = parsed[0]
-        _refuse(path, name, row, cell, 'its dates mix day/month and month/day orders')
-    if day_first:
-        return 'dmy'
-    if month_first:
-        return 'mdy'
-    if all(len(m['a']) == 4 for _, _, m in parsed):
-        return 'ymd'
+        dotted |= m['sep'] == '.'
+        ampm |= bool(m['ap'])
+        day_first |= int(m['a']) > 12
+        month_first |= int(m['b']) > 12
     row, cell, _ = parsed[0]
+    if day_first and month_first:
+        _refuse(path, name, row, cell, 'its dates mix day/month and month/day orders')
+    if day_first or month_first:
+        return ('dmy' if day_first else 'mdy'), ''
+    if dotted or ampm:
+        order, how, other = (('dmy', 'day first, as dotted dates are written', 'mdy')
+                             if dotted else
+                             ('mdy', 'month first, as US Excel writes dates with AM/PM', 'dmy'))
+        return order, (f'{name}: no day over 12 shows the order of day and month: read '
+                       f'{how}; pass --date-order {other} if not')
+    if all(len(m['a']) == 4 for _, _, m in parsed):
+        return 'ymd', ''
     raise InputError(f'{path}: row {row}, column {name!r}: {cell.strip()[:40]!r}: no day over '
                      '12 shows whether the day or the month comes first; pass --date-order '
                      f'dmy (day first) or mdy (month first), or {ISO_FIX}')
