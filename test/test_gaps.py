@@ -152,3 +152,30 @@ def test_a_longest_stretch_that_cannot_be_judged_leaves_the_answer_to_the_others
     # The size would read the frozen stretch, so none is given, and the reason says why.
     assert st['apparent_S'] is None and 'constant' in st['size_withheld'].lower()
     assert judged_text(report).startswith(f'the detector judged {record.samples - b} of ')
+
+
+def test_valid_samples_in_stretches_too_short_to_read_are_counted_and_said():
+    from stiction_ros.analysis.pipeline import short_stretches
+    from stiction_ros.analysis.record import Record
+    from stiction_ros.app.report_text import judged_text
+    n = 1000
+    t = np.arange(n) * 1.0
+    valid = np.ones(n, bool)
+    # A 950-sample stretch, then a gap, a 40-sample stretch, a gap, a 5-sample one.
+    valid[950:953] = False
+    valid[993:996] = False
+    signals = {'op': np.linspace(0, 1, n), 'pv': np.linspace(0, 1, n)}
+    record = Record(t=t, sample_time=1.0, signals=signals, valid=valid, name='r')
+    short = short_stretches(record)
+    assert short == {'stretches': 2, 'valid_samples': 40 + 4}
+    win = {'start_s': 0.0, 'end_s': 949.0, 'samples': 950, 'held': 0}
+    report = {'valid_samples': int(valid.sum()), 'signature_window': win,
+              'short_stretches': short}
+    # The longest holds over 90 % of the valid samples: only the short ones are named.
+    assert judged_text(report) == ('44 valid samples in 2 stretches under 100 samples '
+                                   'between gaps were not read')
+    del report['short_stretches']
+    assert judged_text(report) == ''
+    # A record without gaps has none.
+    assert short_stretches(Record(t=t, sample_time=1.0, signals=signals, valid=np.ones(n, bool),
+                                  name='r')) == {}

@@ -234,6 +234,26 @@ def test_values_stored_on_change_are_interpolated_and_long_silences_stay_gaps(tm
     check_invariants(rec)
 
 
+def test_a_clean_grid_with_one_long_outage_stays_on_its_grid(tmp_path):
+    # A logger on a 10 s scan lost 1 000 s in the middle: a third of the samples have
+    # no row, which is an outage, not values stored on change.
+    ks = np.r_[0:120, 220:300]
+    rows = [[stamp(10 * k), f'{40 + 0.01 * k:.2f}', f'{60 - 0.02 * k:.2f}'] for k in ks]
+    rec = load_record(write(tmp_path / 'outage.csv', ['Timestamp', 'OP', 'PV'], rows))
+    assert rec.sample_time == 10.0 and rec.samples == 300
+    assert rec.source['sampling'] == "the rows' spacing"
+    assert not any(n.startswith('rows not on one sample grid') for n in rec.notes)
+    assert '100 samples have no row (a gap in t); left as gaps' in rec.notes
+    np.testing.assert_array_equal(np.isnan(rec.signals['op']), ~np.isin(np.arange(300), ks))
+    np.testing.assert_allclose(rec.signals['op'][ks], 40 + 0.01 * ks, atol=1e-9)
+    # A hole under a historian's exception maximum is still read as stored on change.
+    short = np.r_[0:60, 62:64, 66:68, 70:72, 74:76, 78:80, 82:84, 86:88, 90:300:3]
+    rows = [[stamp(10 * k), f'{40 + 0.01 * k:.2f}', f'{60 - 0.02 * k:.2f}'] for k in short]
+    rec = load_record(write(tmp_path / 'sparse.csv', ['Timestamp', 'OP', 'PV'], rows))
+    assert rec.source['sampling'].startswith('resampled at 10 s')
+    check_invariants(rec)
+
+
 # ---- tags and --columns --------------------------------------------------------------
 
 def test_tag_prefixed_columns_are_matched_by_suffix(tmp_path):

@@ -161,6 +161,15 @@ def stretches(record):
     return sorted(found, key=lambda w: w[1] - w[0], reverse=True)
 
 
+def short_stretches(record) -> dict:
+    """Return how many valid samples lie in stretches too short to read, and in how many."""
+    if not (record.has('op') and record.has('pv')):
+        return {}
+    short = [(a, b) for a, b in runs(bridged_valid(record)) if b - a < MIN_SIGNATURE_SAMPLES]
+    n = int(sum(np.sum(record.valid[a:b]) for a, b in short))
+    return {'stretches': len(short), 'valid_samples': n} if n else {}
+
+
 def signature_window(record):
     """Return (start, stop, samples held) of the longest stretch for the signatures, or None."""
     found = stretches(record)
@@ -318,6 +327,10 @@ def analyze(record: Record, options: Options | None = None,
     report['loop_type'] = 'integrating' if integrating else 'self-regulating'
     notes.append(why)
     win = signature_window(record)
+    short = short_stretches(record)
+    if short:
+        # Said, so that no valid sample is dropped without a word.
+        report['short_stretches'] = short
     held = None if win is None else held_signals(record, win[0], win[1])
     detection = None
     if not analysis.fits:

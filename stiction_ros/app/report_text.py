@@ -15,6 +15,7 @@ import textwrap
 import numpy as np
 
 from stiction_ros.analysis.detection import probability_text
+from stiction_ros.analysis.pipeline import MIN_SIGNATURE_SAMPLES as MIN_STRETCH
 
 VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
 FRICTION_WORDS = {'stiction': 'stiction claimed', 'backlash': 'backlash (play without stick)',
@@ -196,10 +197,22 @@ def size_text(report: dict) -> str:
 
 def judged_text(report: dict) -> str:
     """Return what part of the valid samples OP and PV were judged on, if notably less."""
-    win, valid = report.get('signature_window'), report.get('valid_samples') or 0
+    win = report.get('signature_window')
     # With MV the fits decide, and they run on across gaps.
     if report.get('fits') or not win:
         return ''
+    text = _judged(report, win)
+    short = report.get('short_stretches') or {}
+    if short.get('valid_samples'):
+        k = short['stretches']
+        text = (text + '; ' if text else '') + (
+            f'{short["valid_samples"]} valid samples in {k} stretch{"es" if k > 1 else ""} '
+            f'under {MIN_STRETCH} samples between gaps were not read')
+    return text
+
+
+def _judged(report: dict, win: dict) -> str:
+    valid = report.get('valid_samples') or 0
     parts = ((report.get('stiction') or {}).get('detector') or {}).get('stretches') or []
     judged = [t for t in parts if t.get('probability') is not None]
     longest = (f'{win["samples"]} samples ({win["start_s"]:g}-{win["end_s"]:g} s)')
@@ -220,8 +233,9 @@ def judged_text(report: dict) -> str:
             f'samples ({win["start_s"]:g}-{win["end_s"]:g} s); gaps split the rest')
     others = [_code(t) for t in parts[1:] if t.get('probability') is None]
     if others:
-        text += (f', and {len(others)} other stretch{"es" if len(others) > 1 else ""} of 100 '
-                 f'samples or more could not be judged alone ({", ".join(sorted(set(others)))})')
+        text += (f', and {len(others)} other stretch{"es" if len(others) > 1 else ""} of '
+                 f'{MIN_STRETCH} samples or more could not be judged alone '
+                 f'({", ".join(sorted(set(others)))})')
     return text
 
 

@@ -284,7 +284,7 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
     n = int(k[-1]) + 1
     _, crowded, dropped, _ = align.place(k, np.zeros(len(k)), n)
     stray = align.off_grid(rel, ts, center)
-    covered = len(np.unique(k)) / n
+    covered = _covered(k, n, ts)
     if ignored:
         notes.append('ignored columns: ' + ', '.join(ignored))
     if stray <= align.STRAY and not len(crowded) and covered >= COVERED:
@@ -322,6 +322,16 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
     reasons = None if at is None else {EXCLUDED: at == 0.0}
     return assemble(signals, ts, reasons, notes=notes, source=source, start_time=start,
                     name=_stem(path), time_origin=origin)
+
+
+def _covered(k, n, ts):
+    """Return the share of the grid's samples that have a row, long outages left out."""
+    rows = np.unique(k)
+    missing = np.diff(rows) - 1
+    # A silence longer than a historian ever keeps a steady value is an outage, not
+    # values stored on change: a clean grid with one long hole stays on its grid.
+    outage = missing[(missing + 1) * ts > max(align.BRIDGE_S, align.BRIDGE_SAMPLES * ts)]
+    return len(rows) / max(1, n - int(outage.sum()))
 
 
 def _check_size(path, n, ts):
