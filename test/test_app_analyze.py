@@ -137,8 +137,9 @@ def test_each_part_of_a_long_analysis_is_said_as_a_step_before_it_runs(loop):
     said = []
     analyze_file(AnalyzeOptions(loop / 'loop.csv', model='kano'), said.append)
     parts = [s for s in said if isinstance(s, Step) and s.task == 'analysing']
-    # With MV the fits answer; only the signatures run after them.
-    assert [p.detail for p in parts] == ['signatures'] and not parts[0].finished
+    # With MV the fits answer; only the signatures run after them, a bar of one part.
+    assert [(p.detail, p.done, p.total) for p in parts] == [('signatures', 0, 1)]
+    assert not parts[0].finished
     # OP and PV alone: the detector, the signatures, then the size from OP and PV.
     lines = (loop / 'loop.csv').read_text().splitlines()
     head = lines[0].split(',')

@@ -296,15 +296,16 @@ def run_detection(record, win, held, integrating, model_path=None):
 
 def analyze(record: Record, options: Options | None = None,
             progress: Callable[[SearchProgress], object] | None = None,
-            stage: Callable[[str], object] | None = None) -> Analysis:
+            stage: Callable[[str, tuple], object] | None = None) -> Analysis:
     """
     Return the :class:`Analysis` of ``record``.
 
     ``progress`` hears each level of a model search; ``stage`` the name (one
-    of :data:`STAGES`) of each other part as it starts.
+    of :data:`STAGES`) of each other part as it starts, and the parts this
+    record runs (with MV the fits decide, and only the signatures follow them).
     """
     options = options or Options()
-    stage = stage or (lambda name: None)
+    say_stage = stage or (lambda name, plan: None)
     notes = list(record.notes)
     report = {
         'input': {str(k): _plain(v) for k, v in record.source.items()},
@@ -323,6 +324,10 @@ def analyze(record: Record, options: Options | None = None,
             notes.append(f'no model fit: {exc}')
     else:
         notes.append('no valve position (mv): fits skipped; the verdict rests on OP and PV')
+    plan = ('signatures',) if analysis.fits else STAGES
+
+    def stage(name: str) -> None:
+        say_stage(name, plan)
     integrating, why = is_integrating(record, options.loop_type)
     report['loop_type'] = 'integrating' if integrating else 'self-regulating'
     notes.append(why)

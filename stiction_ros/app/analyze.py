@@ -421,13 +421,11 @@ def search_levels(record: Record) -> int:
     return levels
 
 
-def _stages(say: Say) -> Callable[[str], None]:
+def _stages(say: Say) -> Callable[[str, tuple], None]:
     """Return the pipeline's ``stage`` callback: each part as a step of a bar."""
-    from stiction_ros.analysis.pipeline import STAGES
-
-    def stage(name: str) -> None:
+    def stage(name: str, plan: tuple) -> None:
         # Never the last step: a finished step stays on screen, and the verdict follows.
-        say(Step('analysing', STAGES.index(name), len(STAGES), name))
+        say(Step('analysing', plan.index(name), len(plan), name))
     return stage
 
 

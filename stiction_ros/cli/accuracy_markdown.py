@@ -1,20 +1,21 @@
 """The text of docs/ACCURACY.md from the study dict that ``stiction_ros.cli.accuracy`` builds."""
 
-import math
-
 from stiction_ros.analysis.detection import probability_text
+from stiction_ros.cli.text import figure
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 from stiction_ros.study.accuracy_study import band_answer, BANDED, FORCED, SHIPPED, THRESHOLD
 from stiction_ros.study.intervals import class_interval, DRAWS, exact_interval, LEVEL, \
     percentile_interval, SEED, tag_draws
 
+
+def _f(v, digits=2):
+    # Two decimals unless told: the accuracy page's own precision.
+    return figure(v, digits)
+
+
 HEAD = ('| method | TP | FN | FP | TN | cannot tell (sticky / healthy) | balanced accuracy | '
         'balanced accuracy on decided (share decided) |')
 RULE = '|---|---|---|---|---|---|---|---|'
-
-
-def _f(v, digits=2):
-    return '-' if v is None or (isinstance(v, float) and math.isnan(v)) else f'{v:.{digits}f}'
 
 
 def table(rows: dict) -> list:

@@ -15,7 +15,8 @@ import argparse
 import os
 import sys
 
-from stiction_ros.cli.text import description, pipe_safe, run_seeded, run_stamp, write_study
+from stiction_ros.cli.text import (description, figure, pipe_safe, run_seeded, run_stamp,
+                                   write_study)
 
 # Seeds drawn for the gap study, never read by any other study or fit.
 SEEDS = range(7_000_000, 7_002_000)
@@ -30,10 +31,6 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--markdown', default='docs/GAPS.md')
     p.add_argument('--json', default='docs/gaps.json')
     return p
-
-
-def _f(v: float | None) -> str:
-    return '-' if v is None else f'{v:.3f}'
 
 
 def markdown(study: dict) -> str:
@@ -67,9 +64,9 @@ def markdown(study: dict) -> str:
     for r in study['rows']:
         bold = '**' if r['rule'] != 'whole record' else ''
         lines.append(
-            f"| {r['share']:.0%} | {r['rule']} | {bold}{_f(r['balanced_accuracy'])}{bold} | "
+            f"| {r['share']:.0%} | {r['rule']} | {bold}{figure(r['balanced_accuracy'])}{bold} | "
             f"{r['tp']}/{r['tp'] + r['fn']} | {r['fp']}/{r['fp'] + r['tn']} | "
-            f"{_f(r['banded_balanced_accuracy'])} | {_f(r['decided_balanced_accuracy'])} "
+            f"{figure(r['banded_balanced_accuracy'])} | {figure(r['decided_balanced_accuracy'])} "
             f"({r['decided_share']:.2f}) | {r['refused']} | {r['differ_from_whole']} |")
     lines += ['', 'Why the analyzer pools, and the rule written before these seeds were '
               'read: [DETECTION_LOG.md](DETECTION_LOG.md), "A record cut by a gap".', '']
@@ -91,8 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
     write_study(out, args.json, args.markdown, markdown)
     for r in out['rows']:
-        print(f"gap {r['share']:.0%}, {r['rule']:>20}: {_f(r['balanced_accuracy'])} at 0.5, "
-              f"{_f(r['banded_balanced_accuracy'])} with the band")
+        print(f"gap {r['share']:.0%}, {r['rule']:>20}: {figure(r['balanced_accuracy'])} at 0.5, "
+              f"{figure(r['banded_balanced_accuracy'])} with the band")
     print(f'wrote {args.markdown} and {args.json}')
     return 0
 

@@ -18,7 +18,7 @@ import sys
 
 from stiction_ros.analysis.detection import dataset
 from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description, pipe_safe, run_stamp, write_study
+from stiction_ros.cli.text import description, figure, pipe_safe, run_stamp, write_study
 from stiction_ros.errors import DetectorFileError
 
 # The scoring seeds of make accuracy: the first row repeats its simulated row.
@@ -39,10 +39,6 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument('--markdown', default='docs/ROBUSTNESS.md')
     p.add_argument('--json', default='docs/robustness.json')
     return p
-
-
-def _f(v: float | None, digits: int = 3) -> str:
-    return '-' if v is None or v != v else f'{v:.{digits}f}'
 
 
 def markdown(study: dict) -> str:
@@ -85,16 +81,16 @@ def markdown(study: dict) -> str:
     ]
     for r in study['rows']:
         lines.append(
-            f"| {r['condition']} | **{_f(r['balanced_accuracy'])}** | {r['tp']}/"
+            f"| {r['condition']} | **{figure(r['balanced_accuracy'])}** | {r['tp']}/"
             f"{r['tp'] + r['fn']} | {r['fp']}/{r['fp'] + r['tn']} | {r['new_flags']} | "
             f"{r['lost_finds']} | {r['lost_refused']} ({r['lost_under_sampled']}) | "
-            f"{_f(r['banded_balanced_accuracy'])} | "
-            f"{_f(r['decided_balanced_accuracy'])} ({r['decided_share']:.2f}) | "
-            f"{r['refused']} | {_f(r['median_shift_healthy'], 2)} / "
-            f"{_f(r['median_shift_sticky'], 2)} | {r['realigned']} ({r['realigned_right']}) | "
+            f"{figure(r['banded_balanced_accuracy'])} | "
+            f"{figure(r['decided_balanced_accuracy'])} ({r['decided_share']:.2f}) | "
+            f"{r['refused']} | {figure(r['median_shift_healthy'], 2)} / "
+            f"{figure(r['median_shift_sticky'], 2)} | {r['realigned']} ({r['realigned_right']}) | "
             f"{r.get('lagged', '-')} | "
-            f"{_f(r['without_check_balanced_accuracy'])} / "
-            f"{_f(r['without_check_banded_balanced_accuracy'])} |")
+            f"{figure(r['without_check_balanced_accuracy'])} / "
+            f"{figure(r['without_check_banded_balanced_accuracy'])} |")
     lines += ['', '| condition | what it stands for |', '|---|---|']
     lines += [f"| {r['condition']} | {r['what']} |" for r in study['rows']]
     if study.get('skew_choice'):

@@ -12,6 +12,11 @@ from typing import Callable
 from stiction_ros.app.docstrings import plain
 
 
+def figure(v: float | None, digits: int = 3) -> str:
+    """Return ``v`` with ``digits`` decimals for a study's table, '-' for none or NaN."""
+    return '-' if v is None or v != v else f'{v:.{digits}f}'
+
+
 def description(doc: str | None) -> str:
     """Return the first line of a module docstring, as plain text, for ``--help``."""
     lines = [line.strip() for line in (doc or '').strip().splitlines()]
