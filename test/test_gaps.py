@@ -87,7 +87,11 @@ def test_a_record_with_a_gap_is_judged_on_both_stretches_pooled(tmp_path, seed):
     from stiction_ros.analysis.readers import load_record
     sc, a, b = _gapped_csv(tmp_path / 'gap.csv', seed)
     record = load_record(tmp_path / 'gap.csv')
-    det = analyze(record, Options(hammerstein=False)).report['stiction']['detector']
+    report = analyze(record, Options(hammerstein=False)).report
+    det = report['stiction']['detector']
+    # The page says what the terminal's judged: line says.
+    from stiction_ros.viz.report_html import render
+    assert '<p>Judged on: the detector pooled 2 stretches between gaps' in render(report, [])
     # Each stretch read alone, as the analyzer reads a record of its own.
     op, pv, sp = (record.signals[k] for k in ('op', 'pv', 'sp'))
     n = record.samples

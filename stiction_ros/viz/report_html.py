@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND
+from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
 from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
     span, STYLE, table
@@ -231,6 +232,10 @@ def render(report: dict, figures: list) -> str:
              f'signals: {e(", ".join(report["signals"]))}; '
              f'{e(report.get("loop_type", ""))} loop. OP and MV are in % of travel; PV and SP '
              f'in {PV_UNITS}.</p>']
+    judged = judged_text(report)
+    if judged:
+        # What the terminal's judged: line says: gaps left part of the record unread.
+        parts.append(f'<p>Judged on: {clean(judged)}.</p>')
     parts += _verdict(report)
     if st.get('evidence'):
         parts += ['<h2>Evidence (which test saw what, and when)</h2><ul>',
