@@ -35,6 +35,28 @@ def test_dates_with_month_names_are_read(tmp_path, fmt):
     np.testing.assert_array_equal(rec.signals['op'], OP)
 
 
+# The English names strftime writes, and German Excel's for the months that differ.
+GERMAN = {'Mar': 'Mär', 'May': 'Mai', 'Oct': 'Okt', 'Dec': 'Dez',
+          'March': 'März', 'October': 'Oktober', 'December': 'Dezember'}
+
+
+@pytest.mark.parametrize('start', ['2024-03-09 23:50:00', '2024-05-09 23:50:00',
+                                   '2024-10-09 23:50:00', '2024-12-09 23:50:00'])
+@pytest.mark.parametrize('fmt', ['%d. %b %Y %H:%M:%S', '%d.%b.%y %H:%M:%S', '%d-%b-%y %H:%M:%S',
+                                 '%d. %B %Y %H:%M:%S'])
+def test_german_month_names_are_read(tmp_path, start, fmt):
+    def german(text):
+        # Whole names first: 'March' holds 'Mar'.
+        for en, de in sorted(GERMAN.items(), key=lambda kv: -len(kv[0])):
+            text = text.replace(en, de)
+        return text
+    stamps = [german(s) for s in clock(start, fmt)]
+    assert not any(m in stamps[0] for m in ('Mar ', 'May', 'Oct', 'Dec'))
+    rec = load_record(csv_file(tmp_path / 'de.csv', stamps))
+    assert rec.start_time == start.replace(' ', 'T') and rec.samples == N
+    np.testing.assert_array_equal(rec.signals['op'], OP)
+
+
 def test_a_two_digit_year_reads_as_excel_reads_it(tmp_path):
     rec = load_record(csv_file(tmp_path / 'y.csv', clock('1998-01-05 08:00:00',
                                                          '%d-%b-%y %H:%M:%S')))

@@ -13,7 +13,7 @@ locales write), ``2026/03/01 12:00:00``, and ``03/01/2026 1:00:00 PM``
 where a day over 12 proves the order of month and day or ``--date-order``
 says it; where neither does, dots are read day first and an AM/PM month
 first (US Excel), each with a note, and other dates are refused; ``13-Jun-24 14:00``,
-``13 Jun 2024`` and ``Jun 13, 2024 2:00 PM`` (English month names, a
+``13 Jun 2024`` and ``Jun 13, 2024 2:00 PM`` (English or German month names, a
 two-digit year as Excel reads it); or a time of day alone.  A zone in a header
 (``Timestamp (UTC)``) applies to stamps that have none.  Stamps with
 offsets are compared as instants, so a change of offset (summer time) is
@@ -57,11 +57,15 @@ _ZONE = r'\s*(?P<z>Z|UTC|GMT|[+-]\d{2}:?\d{2})?'
 DATE_TIME = re.compile(r'(?P<a>\d{1,4})(?P<sep>[./-])(?P<b>\d{1,2})(?P=sep)(?P<c>\d{1,4})'
                        rf'(?:(?:[ T]+|,\s*){_TIME})?{_ZONE}')
 TIME_OF_DAY = re.compile(_TIME + _ZONE)
-# Excel's 13-Jun-24 and 13 Jun 2024, and the US Jun 13, 2024: English month names.
+# Excel's 13-Jun-24 and 13 Jun 2024, and the US Jun 13, 2024: English month names;
+# German Excel's 13. Mai 2024 and 13-Okt-24 (no German abbreviation is another
+# month's English one).
 MONTHS = {m: i + 1 for i, m in enumerate(
     ('jan', 'feb', 'mar', 'apr', 'may', 'jun', 'jul', 'aug', 'sep', 'oct', 'nov', 'dec'))}
-_MON = r'(?P<mon>[A-Za-z]{3,9})\.?'
-MONTH_DATE = re.compile(rf'(?:(?P<d>\d{{1,2}})[- ]{_MON}[- ](?P<y>\d{{4}}|\d{{2}})'
+MONTHS.update({'mär': 3, 'mrz': 3, 'mai': 5, 'okt': 10, 'dez': 12})
+_MON = r'(?P<mon>[^\W\d_]{3,9})\.?'
+_SEP = r'(?:\.\s*|[- ])'
+MONTH_DATE = re.compile(rf'(?:(?P<d>\d{{1,2}}){_SEP}{_MON}{_SEP}(?P<y>\d{{4}}|\d{{2}})'
                         rf'|{_MON.replace("mon", "mon2")} (?P<d2>\d{{1,2}}),? (?P<y2>\d{{4}}))'
                         rf'(?:(?:[ T]+|,\s*){_TIME})?{_ZONE}')
 # A two-digit year as Excel reads it: 00-29 in this century, 30-99 in the last.
@@ -261,7 +265,8 @@ def _from_month_name(path, name, row, cell, m):
     mon = (m['mon'] or m['mon2']).lower()
     month = MONTHS.get(mon[:3])
     if month is None or (len(mon) > 3 and not _month_word(mon)):
-        _refuse(path, name, row, cell, f'{mon!r} is no month name (English: Jan ... Dec)')
+        _refuse(path, name, row, cell,
+                f'{mon!r} is no month name (English: Jan ... Dec, or German: Jan ... Dez)')
     if m['d'] is not None:
         d, y = int(m['d']), int(m['y'])
         if len(m['y']) == 2:
@@ -273,7 +278,8 @@ def _from_month_name(path, name, row, cell, m):
 
 def _month_word(mon):
     words = ('january', 'february', 'march', 'april', 'may', 'june', 'july', 'august',
-             'september', 'october', 'november', 'december', 'sept')
+             'september', 'october', 'november', 'december', 'sept',
+             'januar', 'februar', 'märz', 'juni', 'juli', 'oktober', 'dezember')
     return mon in words
 
 
