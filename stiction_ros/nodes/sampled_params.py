@@ -1,6 +1,7 @@
 """The parameters every loop node has: timing, input checks, fault injection, state."""
 
 from stiction_ros.nodes.params import Param
+from stiction_ros.sim.ros_params import INPUT_LIMIT
 
 
 def common_params(phase: float) -> list:
@@ -17,7 +18,7 @@ def common_params(phase: float) -> list:
               'needs CAP_SYS_NICE; without it the node warns and keeps the normal '
               'scheduler). 0: the normal scheduler. Fixed for the run.',
               0, 98, fixed=True),
-        Param('input_limit', 1e6, 'Input values beyond +-this (or not finite) are '
+        Param('input_limit', INPUT_LIMIT, 'Input values beyond +-this (or not finite) are '
               'rejected and the last good value held.', 1.0, 1e300),
         Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
               'reports it stale (ERROR).', 1e-3, 1e6),

@@ -25,6 +25,8 @@ from stiction_ros.sim.profile_params import flat_pairs, profile_parameters
 import yaml
 
 LOOP_NODES = ('plant', 'controller', 'valve')
+# The loop nodes reject an input beyond +-this (their input_limit's default).
+INPUT_LIMIT = 1e6
 # Fraction of the sample at which each node acts (see nodes/sampled.py).
 PHASES = {'plant': 0.25, 'controller': 0.5, 'valve': 0.75}
 # The sim clock runs in lockstep with the topic each loop node publishes.

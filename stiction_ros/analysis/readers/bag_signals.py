@@ -30,6 +30,7 @@ import numpy as np
 from stiction_ros.analysis.readers import align
 from stiction_ros.analysis.record import assemble, InputError, SIGNALS
 from stiction_ros.bag.reader import BagReadError, read_bag
+from stiction_ros.sim.ros_params import INPUT_LIMIT
 
 FLOAT64 = 'std_msgs/msg/Float64'
 KEY_VALUE = 'diagnostic_msgs/msg/KeyValue'
@@ -137,9 +138,12 @@ def read_bag_record(path, namespace=None, held=True):
     if not bag.complete or bag.warnings:
         # Damage to the file itself: the terminal shows these, not only the notes.
         source['warnings'] = list(bag.warnings) or [notes[0]]
+    # A value the loop's nodes would have rejected (a stray publisher, a test
+    # message) is none of the loop's: read as the nodes read it.
     record = assemble(signals, ts, reasons=reasons, notes=notes, source=source,
                       start_time=start, name=prefix or Path(path).name,
-                      time_origin=float(origin))
+                      time_origin=float(origin), limit=INPUT_LIMIT,
+                      beyond="the loop nodes' input limit, which rejects it")
     if HELD in reasons and 'mv' in signals:
         record.valve_ok = (reasons[HELD] & np.isfinite(signals['op'])
                            & np.isfinite(signals['mv']))

@@ -136,6 +136,10 @@ def bicoherence(error, sample_time, period_s=None, nfft=None):
         return Signature('bicoherence', None, NLI_MIN, None,
                          f'record too short: {k} segments of {nfft}, {MIN_SEGMENTS} needed',
                          REFERENCE, details)
+    if not np.isfinite(bic2).any():
+        return Signature('bicoherence', None, NLI_MIN, None,
+                         'no bifrequency could be computed (the error has no finite spectrum)',
+                         REFERENCE, details)
     ind = nonlinearity_indices(bic2, k)
     details.update(ind)
     freq = np.arange(1, nfft // 2 + 1) / (nfft * sample_time * q)
