@@ -23,8 +23,15 @@ class InstallAndPrecompile(install):
         if self.root or os.environ.get('STICTION_ROS_NO_PRECOMPILE'):
             return
         path = os.pathsep.join(filter(None, [self.install_lib, os.environ.get('PYTHONPATH')]))
+        # The installed copy finds its config through the ament index just installed.
+        ament = os.pathsep.join(filter(None, [self.install_data,
+                                              os.environ.get('AMENT_PREFIX_PATH')]))
+        # Run from the install: from the source folder (colcon's working directory)
+        # python -m would import, and compile into, the source tree's copy.
         done = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.precompile'],
-                              env=dict(os.environ, PYTHONPATH=path), check=False)
+                              env=dict(os.environ, PYTHONPATH=path, AMENT_PREFIX_PATH=ament),
+                              cwd=self.install_lib,
+                              check=False)
         if done.returncode != 0:
             print('stiction_ros: precompiling the kernels failed; the first start of each '
                   'node compiles them instead (5-10 s)', file=sys.stderr)

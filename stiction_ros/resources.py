@@ -16,7 +16,8 @@ def config_dir() -> Path:
     try:
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory('stiction_ros')) / 'config'
-    except (ImportError, LookupError):
+    except (ImportError, LookupError, OSError):
+        # OSError: no AMENT_PREFIX_PATH at all (no workspace sourced).
         raise FileNotFoundError('cannot find the stiction_ros config directory') from None
 
 
