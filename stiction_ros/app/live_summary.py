@@ -128,4 +128,7 @@ def _pct(x):
 
 
 def _num(x, digits=2):
-    return '-' if x is None else f'{x:.{digits}f}'
+    if x is None:
+        return '-'
+    # A value a stray publisher put on a topic (1e300) in three figures, not 300 digits.
+    return f'{x:.3g}' if abs(x) >= 1e6 else f'{x:.{digits}f}'

@@ -264,7 +264,10 @@ def run_loop(cfg, namespace='', rtf=None, duration=None, record=None, log_dir=No
     try:
         if record:
             procs.start('recorder', node_command('recorder', namespace, params, sim_arg), env)
-        rt_arg = ['-p', f'realtime_priority:={int(realtime_priority)}'] if not sim else []
+        # On wall time the profiles count from the launch, alike in every node (a
+        # respawned one too).
+        rt_arg = ['-p', f'realtime_priority:={int(realtime_priority)}',
+                  '-p', f'start_time:={time.time():.3f}'] if not sim else []
         faults = {}
         for topic, spec in (inject or {}).items():
             faults.setdefault(CONSUMER[topic], []).extend(

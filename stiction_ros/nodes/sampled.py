@@ -90,6 +90,11 @@ class SampledNode(Node):
         self.values = declare(self, self.param_specs)
         self.sample_time = self.values['sample_time']
         self._sim = bool(self.get_parameter('use_sim_time').value)
+        # On wall time k counts samples since 1970, and a profile's step 'at 10 s' would
+        # be decades past: profiles count from start_time, or this node's first sample.
+        start = self.values['start_time']
+        first = math.floor(start / self.sample_time + 1e-9) if start > 0 else None
+        self._k0 = 0 if self._sim else first
         self._slot = int(round(self.values['phase'] * SLOTS))
         self._ts_ns = int(round(self.sample_time * 1e9))
         self.last_k = None
@@ -228,7 +233,9 @@ class SampledNode(Node):
             self.skipped += k - self.last_k - 1
         self.last_k = k
         self.samples += 1
-        self.on_sample(k, k * self.sample_time)
+        if self._k0 is None:
+            self._k0 = k
+        self.on_sample(k, (k - self._k0) * self.sample_time)
         # How late this sample's action finished, for the summary at shutdown.
         due = k * self._ts_ns + self._slot * self._ts_ns // SLOTS
         self._late.append(self.get_clock().now().nanoseconds - due)

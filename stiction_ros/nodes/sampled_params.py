@@ -18,6 +18,10 @@ def common_params(phase: float) -> list:
               'needs CAP_SYS_NICE; without it the node warns and keeps the normal '
               'scheduler). 0: the normal scheduler. Fixed for the run.',
               0, 98, fixed=True),
+        Param('start_time', 0.0, 'On wall time, the Unix time (s) the profiles (set point, '
+              'loads) count from; the loop launcher gives every node the same. 0: the first '
+              'sample this node acts on. Sim time counts from 0. Fixed for the run.',
+              0.0, 1e11, fixed=True),
         Param('input_limit', INPUT_LIMIT, 'Input values beyond +-this (or not finite) are '
               'rejected and the last good value held.', 1.0, 1e300),
         Param('stale_after', 5.0, 'Seconds without a valid input before /diagnostics '
