@@ -7,6 +7,7 @@ and the names it uses are checked here too.
 
 import ast
 from pathlib import Path
+import time
 
 import pytest
 from stiction_ros.errors import ConfigError
@@ -52,6 +53,11 @@ def test_a_wall_time_launch_ends_after_its_duration_and_respawns_with_a_state_di
     assert all(nodes[n].respawn for n in ('plant', 'controller', 'valve'))
     assert nodes['valve'].parameters['state_file'] == str(tmp_path / 'valve.state')
     assert plan.end_after == pytest.approx(30.0 + 0.75 * nodes['valve'].parameters['sample_time'])
+    # The profiles of every loop node count from one launch instant (none on sim time).
+    starts = {nodes[n].parameters['start_time'] for n in ('plant', 'controller', 'valve')}
+    assert len(starts) == 1 and abs(starts.pop() - time.time()) < 60.0
+    assert 'start_time' not in nodes['recorder'].parameters
+    assert all('start_time' not in n.parameters for n in launch_plan(rtf='10').nodes)
 
 
 @pytest.mark.parametrize('kwargs, match', [

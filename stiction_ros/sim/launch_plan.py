@@ -10,6 +10,7 @@ machine without ROS 2 launch.
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
+import time
 from typing import Any
 
 from stiction_ros.errors import ConfigError
@@ -110,7 +111,11 @@ def launch_plan(config: str = '', case: str = '', rtf: str = '0.0', record: str 
     params.update(loop_extras(cfg, rtf=rtf_value, record=record or None, duration=length))
     sim = rtf_value > 0.0
     plan = LaunchPlan(config=path, ros_arguments=['--log-level', level])
+    # On wall time the profiles count from the launch, alike in every loop node.
+    start = round(time.time(), 3)
     for name, p in params.items():
+        if not sim and name in LOOP_NODES:
+            p['start_time'] = start
         if state_dir and name in LOOP_NODES:
             p['state_file'] = os.path.join(state_dir, f'{name}.state')
         plan.nodes.append(NodeSpec(name, p, sim_time=sim and name != 'sim_clock',
