@@ -123,9 +123,16 @@ class Processes:
         return time.monotonic() - self.started[name]
 
     def failed(self):
-        """Return the name of a node that has exited with an error, or None."""
+        """
+        Return the name of a node that has stopped, or None.
+
+        Only the sim clock ends by itself (at the run's last sample); any other
+        node that exits before the run ends has stopped, whatever its code: a
+        node asked to stop by SIGTERM exits 0, and a recorder gone quiet so
+        would leave the run going on with nothing recorded.
+        """
         for name, (p, _) in self.procs.items():
-            if p.poll() is not None and p.returncode != 0:
+            if p.poll() is not None and (p.returncode != 0 or name != 'sim_clock'):
                 return name
         return None
 
