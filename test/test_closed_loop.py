@@ -141,6 +141,20 @@ def test_config_errors_name_the_key_and_the_fix(overrides, match):
         load_loop(CONFIG, None, overrides)
 
 
+@pytest.mark.parametrize('model', ['stenman', 'linear', 'physical', 'kano'])
+def test_a_model_set_on_the_command_line_drops_the_files_keys_it_lacks(model):
+    from stiction_ros.models import MODELS
+    cfg = load_loop(CONFIG, 'undershoot', {'valve.model': model})
+    assert cfg['valve']['model'] == model
+    assert set(cfg['valve']) <= set(MODELS[model].PARAMS) | {'model'}
+    # A key given on the command line is kept, so a wrong one is still named.
+    with pytest.raises(ConfigError, match='valve.J: unknown key'):
+        load_loop(CONFIG, 'undershoot', {'valve.model': 'stenman', 'valve.J': 2.0})
+    # A model set in the file's own mapping keeps the file's rule: every key is checked.
+    with pytest.raises(ConfigError, match='unknown key'):
+        load_loop(CONFIG, 'undershoot', {'valve': {'model': 'stenman', 'S': 5.0, 'J': 1.0}})
+
+
 def test_cli_writes_csv_and_reports_errors_in_one_line(tmp_path, capsys):
     out = tmp_path / 'x.csv'
     assert sim.main([str(CONFIG), '--case', 'overshoot', '--duration', '50', '-o', str(out),

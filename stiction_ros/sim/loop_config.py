@@ -93,17 +93,38 @@ def resolve_loop(doc, case=None, overrides=None, source='loop'):
             raise ConfigError(f'{source}: no case {case!r}; cases: {sorted(cases)}')
         cfg = deep_merge(cfg, cases[case])
         cfg['case'] = case
-    for dotted, value in (overrides or {}).items():
+    overrides = overrides or {}
+    for dotted, value in overrides.items():
         node = cfg
         *parents, leaf = dotted.split('.')
         for p in parents:
             node = node.setdefault(p, {})
         node[leaf] = value
+    _drop_other_models_keys(cfg, overrides)
     try:
         validate(cfg)
     except ConfigError as err:
         raise ConfigError(f'{source}: {err}') from None
     return cfg
+
+
+def _drop_other_models_keys(cfg, overrides):
+    """
+    With ``valve.model`` set on the command line, drop the file's keys the new model lacks.
+
+    The file's valve section holds its own model's parameters (Kano's J); a
+    model set by ``--set`` without them (Stenman's S alone) would otherwise be
+    refused for a key nobody on the command line wrote.  Keys given with
+    ``--set`` are kept, so a wrong one is still named.
+    """
+    valve = cfg.get('valve')
+    model = overrides.get('valve.model')
+    if not isinstance(valve, dict) or model not in MODELS:
+        return
+    keep = set(MODELS[model].PARAMS) | {'model'}
+    given = {k.split('.', 1)[1] for k in overrides if k.startswith('valve.')}
+    for key in [k for k in valve if k not in keep and k not in given]:
+        del valve[key]
 
 
 def validate(cfg):
