@@ -43,6 +43,8 @@ def test_verdict_is_published_once_with_key_values_and_the_report_written(
     kv = {k.key: k.value for k in status.values}
     assert abs(float(kv['kano.S']) - 4.0) <= 0.1 and abs(float(kv['kano.J']) - 1.0) <= 0.1
     assert kv['detected'] == 'True'
+    # MV decided: no detector probability, and no key that says 'None'.
+    assert 'None' not in kv.values() and 'probability' not in kv
     report = json.loads((tmp_path / 'r.json').read_text())
     assert report['fits'][0]['model'] == 'kano'
     assert len(diagnostics) == 1

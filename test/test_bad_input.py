@@ -84,3 +84,17 @@ def test_a_valve_node_holds_its_position_through_nan_inf_and_absurd_op(probe, tm
     log = (tmp_path / 'valve.log').read_text()
     assert 'ignored op = nan' in log and 'holding the last good value' in log
     assert '5 inputs rejected' in log
+
+
+def test_a_node_that_acted_before_its_input_came_says_so_at_shutdown(tmp_path):
+    # No OP publisher at all: every sample acted on is one before any OP came, and
+    # the summary counts them rather than say 'none on a held input'.
+    valve = start_node('valve', {'sample_time': 0.05, 'model': 'kano', 'S': 1.0, 'J': 0.5},
+                       '/unheard', str(tmp_path))
+    log = tmp_path / 'valve.log'
+    wait_for(lambda: log.exists() and 'Kano' in log.read_text(), timeout=30, what='the valve')
+    time.sleep(0.5)
+    assert stop(valve) == 0
+    text = log.read_text()
+    assert 'before any op came' in text, text
+    assert 'none on a held input' not in text

@@ -56,7 +56,9 @@ def key_values(report):
     for f in report['fits']:
         kv += [(f'{f["model"]}.S', f'{f["S"]:.2f}'), (f'{f["model"]}.J', f'{f["J"]:.2f}'),
                (f'{f["model"]}.mse', f'{f["mse"]:.5g}')]
-    return [KeyValue(key=k, value=str(v)) for k, v in kv]
+    # A figure the analysis has not (no detector probability where MV decided) is left
+    # out, not written 'None'.
+    return [KeyValue(key=k, value=str(v)) for k, v in kv if v is not None]
 
 
 class AnalyzerNode(Node):

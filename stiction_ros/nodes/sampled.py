@@ -115,6 +115,7 @@ class SampledNode(Node):
         self._pending = None            # on sim time: the sample waiting for an input
         self.waited = {'samples': 0, 'gave_up': 0}
         self.injected = {'lost': 0, 'delayed': 0}
+        self.unheard = {}               # samples acted on before an input's first value
         # Relative: /diagnostics without a namespace, the loop's own in one.
         self._diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self._held_pub = self.create_publisher(KeyValue, 'held_inputs', DATA_QOS)
@@ -252,6 +253,7 @@ class SampledNode(Node):
                     'lost or late', throttle_duration_sec=5.0)
             elif guard.last_good is None and guard.lag == 0:
                 value = 'nan'
+                self.unheard[topic] = self.unheard.get(topic, 0) + 1
             else:
                 continue
             self._held_pub.publish(KeyValue(key=self.resolve_topic_name(topic),
@@ -314,8 +316,9 @@ class SampledNode(Node):
             pick = [late[min(len(late) - 1, int(q * len(late)))] / 1e6 for q in (0.5, 0.99)]
             stats = (f'; done {pick[0]:.2f} ms after its phase instant (p50), {pick[1]:.2f} ms'
                      f' (p99), {late[-1] / 1e6:.2f} ms (max)')
-        held = ', '.join(f'{g.held} on a held {t}' for t, g in self.input_guards.items()
-                         if g.held)
+        held = ', '.join([f'{g.held} on a held {t}' for t, g in self.input_guards.items()
+                          if g.held] + [f'{n} before any {t} came'
+                                        for t, n in self.unheard.items()])
         held = held or 'none on a held input'
         faults = ''
         if any(self.injected.values()):
@@ -458,7 +461,8 @@ class SampledNode(Node):
             merged.update(changes)
             reason = self.check(merged, changes)
         if reason is not None:
-            self.get_logger().warning(f'rejected {sorted(changes)}: {reason}')
+            names = sorted(changes) or sorted(p.name for p in params)
+            self.get_logger().warning(f'rejected {names}: {reason}')
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
