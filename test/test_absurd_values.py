@@ -56,23 +56,55 @@ def _f64(x):
     return b'\x00\x01\x00\x00' + struct.pack('<d', x)
 
 
+def _cdr_string(text, at):
+    raw = text.encode() + b'\0'
+    pad = b'\0' * (-at % 4)
+    return pad + struct.pack('<I', len(raw)) + raw
+
+
+def _key_value(key, value):
+    # diagnostic_msgs/KeyValue in CDR: two strings, the second aligned to 4 bytes.
+    first = _cdr_string(key, 0)
+    return b'\x00\x01\x00\x00' + first + _cdr_string(value, len(first))
+
+
 def test_a_bag_value_the_loop_nodes_reject_is_read_as_they_read_it(tmp_path):
     sc, rec = _loop()
     ts_ns = int(sc.sample_time * 1e9)
     w = BagWriter(tmp_path / 'bag', chunk_size=4096)
-    for name in ('/op', '/pv', '/sp'):
+    for name in ('/op', '/mv', '/pv', '/sp'):
         w.add_topic(name, 'std_msgs/msg/Float64', [qos_profile(depth=100)], 'RIHS01_' + '0' * 64)
-    absurd = {100: 1e300, 101: 2 * INPUT_LIMIT, 102: -1e7}
+    w.add_topic('/held_inputs', 'diagnostic_msgs/msg/KeyValue', [qos_profile(depth=100)],
+                'RIHS01_' + '0' * 64)
+    # OP and MV in % of span beyond the nodes' limit; a PV of 2e6 (a pressure in Pa) is a
+    # value, one of 1e300 is not.  At sample 50 the plant rejected the MV of 1e9 and acted
+    # on the one before: a held sample, which the valve fits would otherwise keep.
+    bad_op, bad_mv, big_pv, no_pv = {100: 1e9}, {50: -2 * INPUT_LIMIT}, {120: 2e6}, {130: 1e300}
     for k in range(len(rec['op'])):
-        w.write('/op', _f64(float(rec['op'][k])), k * ts_ns)
-        w.write('/pv', _f64(absurd.get(k, float(rec['pv'][k]))), k * ts_ns + ts_ns // 4)
-        w.write('/sp', _f64(float(rec['sp'][k])), k * ts_ns + ts_ns // 4)
+        t0 = 10**9 + k * ts_ns
+        w.write('/pv', _f64(no_pv.get(k, big_pv.get(k, float(rec['pv'][k])))), t0 + ts_ns // 4)
+        w.write('/op', _f64(bad_op.get(k, float(rec['op'][k]))), t0 + ts_ns // 2)
+        w.write('/sp', _f64(float(rec['sp'][k])), t0 + ts_ns // 2)
+        w.write('/mv', _f64(bad_mv.get(k, float(rec['mv'][k]))), t0 + 3 * ts_ns // 4)
+        if k == 50:
+            # The node's own sample number: samples since its clock's zero.
+            mark = f'{round(t0 / ts_ns)} {float(rec["mv"][49])!r}'
+            w.write('/held_inputs', _key_value('/mv', mark), t0 + ts_ns // 4)
     w.close()
     record = load_record(tmp_path / 'bag')
-    assert not record.valid[list(absurd)].any() and record.valid[99] and record.valid[103]
-    assert [e['reason'] for e in record.excluded] == [
-        "pv beyond +-1e6, the loop nodes' input limit, which rejects it"]
+    reasons = {}
+    for e in record.excluded:
+        for reason in e['reason'].split('; '):
+            reasons[reason] = reasons.get(reason, 0) + e['samples']
+    assert reasons["op, mv beyond +-1e6 % of span, which the loop's nodes reject (their "
+                   'input_limit)'] == 2
+    assert reasons['pv beyond +-1e15, which no instrument reads (a code for a bad value, '
+                   'or no measurement)'] == 1
+    assert record.signals['pv'][120] == 2e6 and record.valid[120]
+    assert not record.valid[[50, 100, 130]].any()
+    # The valve fits never read the absurd MV, held sample or not.
+    assert all(not a <= 50 < b for a, b in record.valve_segments())
     with warnings.catch_warnings():
         warnings.simplefilter('error')
         report = analyze(record, Options(hammerstein=False)).report
-    assert report['valid_samples'] == len(rec['op']) - len(absurd)
+    assert all(np.isfinite(f['mse']) for f in report['fits'])

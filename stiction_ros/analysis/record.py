@@ -142,26 +142,23 @@ def runs(mask):
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def assemble(signals, sample_time, reasons=None, notes=(), limit=NOT_A_MEASUREMENT,
-             beyond='which no instrument reads (a code for a bad value, or no measurement)',
-             **info):
+def assemble(signals, sample_time, reasons=None, notes=(), **info):
     """
     Return a :class:`Record` from aligned signals and the reasons samples are excluded.
 
     ``reasons`` maps a reason (words) to a boolean mask of the samples it
     excludes.  NaN not explained by any reason is reported as a missing
-    value.  A value beyond +-``limit`` is no value: it is read as missing,
-    excluded with the reason ``beyond`` gives.  ``info`` gives the other
+    value.  A value beyond +-``NOT_A_MEASUREMENT`` is no value: it is read
+    as missing and excluded, with the reason.  ``info`` gives the other
     :class:`Record` fields.
     """
     signals = {k: np.asarray(v, dtype=np.float64) for k, v in signals.items()}
     reasons = dict(reasons or {})
-    huge = {k: np.isfinite(v) & (np.abs(v) > limit) for k, v in signals.items()}
+    huge = {k: np.isfinite(v) & (np.abs(v) > NOT_A_MEASUREMENT) for k, v in signals.items()}
     if any(h.any() for h in huge.values()):
-        names = [k for k, h in huge.items() if h.any()]
-        power = f'{limit:.0e}'.replace('e+0', 'e').replace('e+', 'e')
-        reasons[f'{", ".join(names)} beyond +-{power}, {beyond}'] = np.any(
-            list(huge.values()), axis=0)
+        names = ', '.join(k for k, h in huge.items() if h.any())
+        reasons[f'{names} beyond +-1e15, which no instrument reads (a code for a bad value, '
+                'or no measurement)'] = np.any(list(huge.values()), axis=0)
         signals = {k: np.where(huge[k], np.nan, v) for k, v in signals.items()}
     n = len(signals['op'])
     labels = list((reasons or {}).keys())

@@ -114,6 +114,16 @@ def read_bag_record(path, namespace=None, held=True):
             notes.append(f'{name}: ignored {outside} message' + ('s' if outside > 1 else '')
                          + " outside op's time range")
     reasons = {}
+    # OP and MV are % of span: a value the loop's nodes would have rejected (a stray
+    # publisher, a test message) is none of the loop's.  PV and SP are in engineering
+    # units (a pressure in Pa may pass 1e6): only the any-file rule of assemble holds.
+    absurd = {k: np.isfinite(v) & (np.abs(v) > INPUT_LIMIT) for k, v in signals.items()
+              if k in ('op', 'mv')}
+    if any(m.any() for m in absurd.values()):
+        names = ', '.join(k for k, m in absurd.items() if m.any())
+        reasons[f"{names} beyond +-1e6 % of span, which the loop's nodes reject (their "
+                'input_limit)'] = np.any(list(absurd.values()), axis=0)
+        signals.update({k: np.where(m, np.nan, signals[k]) for k, m in absurd.items()})
     held = bag.topics.get(f'{prefix}/held_inputs') if held else None
     if held is not None and held.type == KEY_VALUE and held.count:
         mask, used, note = _held_marks(held, ref, ts, center, k0, n)
@@ -138,15 +148,13 @@ def read_bag_record(path, namespace=None, held=True):
     if not bag.complete or bag.warnings:
         # Damage to the file itself: the terminal shows these, not only the notes.
         source['warnings'] = list(bag.warnings) or [notes[0]]
-    # A value the loop's nodes would have rejected (a stray publisher, a test
-    # message) is none of the loop's: read as the nodes read it.
     record = assemble(signals, ts, reasons=reasons, notes=notes, source=source,
                       start_time=start, name=prefix or Path(path).name,
-                      time_origin=float(origin), limit=INPUT_LIMIT,
-                      beyond="the loop nodes' input limit, which rejects it")
+                      time_origin=float(origin))
     if HELD in reasons and 'mv' in signals:
-        record.valve_ok = (reasons[HELD] & np.isfinite(signals['op'])
-                           & np.isfinite(signals['mv']))
+        # The record's signals: assemble has read a value beyond any instrument as none.
+        record.valve_ok = (reasons[HELD] & np.isfinite(record.signals['op'])
+                           & np.isfinite(record.signals['mv']))
     return record
 
 
