@@ -272,7 +272,7 @@ class SampledNode(Node):
     def _save(self, k):
         try:
             self._store.save({'node': self.KIND, 'sample_time': self.sample_time, 'k': k,
-                              'state': self.snapshot_state()})
+                              'k0': self._k0, 'state': self.snapshot_state()})
         except (OSError, ValueError) as err:
             self.get_logger().error(f'cannot save the state to {self.values["state_file"]}: '
                                     f'{err}', throttle_duration_sec=10.0)
@@ -303,6 +303,8 @@ class SampledNode(Node):
         if doc is None:
             return
         self.last_k = doc['k']
+        if self._k0 is None and isinstance(doc.get('k0'), int):
+            self._k0 = doc['k0']        # the profiles go on, not start again
         self.get_logger().info(f'resumed from {path}, saved at sample {doc["k"]}')
 
     def close(self):
