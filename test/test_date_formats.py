@@ -57,6 +57,14 @@ def test_german_month_names_are_read(tmp_path, start, fmt):
     np.testing.assert_array_equal(rec.signals['op'], OP)
 
 
+@pytest.mark.parametrize('word', ['Mrz', 'Maerz', 'März', 'Mär.'])
+def test_march_as_german_exports_write_it(tmp_path, word):
+    stamps = [f'{1 + k // 144:02d}. {word} 2024 {k % 144 // 6:02d}:{k % 6 * 10:02d}:00'
+              for k in range(N)]
+    rec = load_record(csv_file(tmp_path / 'mar.csv', stamps))
+    assert rec.start_time == '2024-03-01T00:00:00' and rec.sample_time == 600.0
+
+
 def test_a_two_digit_year_reads_as_excel_reads_it(tmp_path):
     rec = load_record(csv_file(tmp_path / 'y.csv', clock('1998-01-05 08:00:00',
                                                          '%d-%b-%y %H:%M:%S')))

@@ -324,7 +324,8 @@ def analyze(record: Record, options: Options | None = None,
             notes.append(f'no model fit: {exc}')
     else:
         notes.append('no valve position (mv): fits skipped; the verdict rests on OP and PV')
-    plan = ('signatures',) if analysis.fits else STAGES
+    plan = (('signatures',) if analysis.fits else
+            STAGES if options.hammerstein else STAGES[:-1])
 
     def stage(name: str) -> None:
         say_stage(name, plan)
@@ -332,9 +333,10 @@ def analyze(record: Record, options: Options | None = None,
     report['loop_type'] = 'integrating' if integrating else 'self-regulating'
     notes.append(why)
     win = signature_window(record)
-    short = short_stretches(record)
+    short = {} if analysis.fits else short_stretches(record)
     if short:
-        # Said, so that no valid sample is dropped without a word.
+        # Said, so that no valid sample is dropped without a word (the fits, with MV,
+        # read across gaps).
         report['short_stretches'] = short
     held = None if win is None else held_signals(record, win[0], win[1])
     detection = None

@@ -56,9 +56,9 @@ def key_values(report):
     for f in report['fits']:
         kv += [(f'{f["model"]}.S', f'{f["S"]:.2f}'), (f'{f["model"]}.J', f'{f["J"]:.2f}'),
                (f'{f["model"]}.mse', f'{f["mse"]:.5g}')]
-    # A figure the analysis has not (no detector probability where MV decided) is left
-    # out, not written 'None'.
-    return [KeyValue(key=k, value=str(v)) for k, v in kv if v is not None]
+    # A figure the analysis has not (no detector probability where MV decided, no size)
+    # is left out, not written 'None'; detected stays, as 'None' for cannot tell.
+    return [KeyValue(key=k, value=str(v)) for k, v in kv if v is not None or k == 'detected']
 
 
 class AnalyzerNode(Node):

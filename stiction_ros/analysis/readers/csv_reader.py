@@ -299,7 +299,7 @@ def _on_grid(path, stamps, cells, ignored, notes, names_used):
         n = int(np.floor(rel[-1] / ts + 1e-9)) + 1
         _check_size(path, n, ts)
         if align.off_grid(rel, ts, 0.0) < 1e-3:
-            why = f'rows for only {len(rel) / n:.0%} of the samples'
+            why = f'rows for only {covered:.0%} of the samples outside outages'
         elif stray > align.STRAY:
             why = f'stamps up to {stray:.0%} of a sample off the best grid, {best:g} s'
         else:

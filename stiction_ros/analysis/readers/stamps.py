@@ -62,7 +62,7 @@ TIME_OF_DAY = re.compile(_TIME + _ZONE)
 # month's English one).
 MONTHS = {m: i + 1 for i, m in enumerate(
     ('jan', 'feb', 'mar', 'apr', 'may', 'jun', 'jul', 'aug', 'sep', 'oct', 'nov', 'dec'))}
-MONTHS.update({'mär': 3, 'mrz': 3, 'mai': 5, 'okt': 10, 'dez': 12})
+MONTHS.update({'mär': 3, 'mae': 3, 'mrz': 3, 'mai': 5, 'okt': 10, 'dez': 12})
 _MON = r'(?P<mon>[^\W\d_]{3,9})\.?'
 _SEP = r'(?:\.\s*|[- ])'
 MONTH_DATE = re.compile(rf'(?:(?P<d>\d{{1,2}}){_SEP}{_MON}{_SEP}(?P<y>\d{{4}}|\d{{2}})'
@@ -279,7 +279,7 @@ def _from_month_name(path, name, row, cell, m):
 def _month_word(mon):
     words = ('january', 'february', 'march', 'april', 'may', 'june', 'july', 'august',
              'september', 'october', 'november', 'december', 'sept',
-             'januar', 'februar', 'märz', 'juni', 'juli', 'oktober', 'dezember')
+             'januar', 'februar', 'märz', 'maerz', 'juni', 'juli', 'oktober', 'dezember')
     return mon in words
 
 
