@@ -130,7 +130,9 @@ def test_a_jump_of_other_than_an_hour_is_no_change_of_clocks():
     stamps = shifted(plain('2026-03-29 01:30:00', 10.0, 720), 360, 1.5)
     t = np.array([(s - stamps[0]).total_seconds() for s in stamps])
     out, notes = clock_changes(t, stamps[0])
-    assert notes == [] and np.array_equal(out, t)
+    assert np.array_equal(out, t) and not any('clocks went' in n for n in notes)
+    # It is an outage across 03:00, when Helsinki's clocks go forward that day.
+    assert len(notes) == 1 and 'may be an hour shorter' in notes[0]
 
 
 def test_a_historian_export_across_the_change_is_read_on_its_grid(tmp_path):
@@ -163,3 +165,30 @@ def test_excel_serial_dates_across_the_change_read_every_row_as_one_stretch(tmp_
     assert rec.samples == 720 and rec.valid.all()
     np.testing.assert_array_equal(rec.signals['op'], op)
     assert any('clocks went forward' in n for n in rec.notes)
+
+
+@needs_zones
+@pytest.mark.parametrize('which, how', [(0, 'an hour shorter'), (1, 'an hour longer')],
+                         ids=['forward', 'back'])
+def test_an_outage_across_the_change_is_kept_and_said_to_be_uncertain_by_an_hour(
+        tmp_path, which, how):
+    # Berlin's clocks change within rows 60-480 (10 s apart); rows 30-539 are missing.
+    stamps = local_stamps('Europe/Berlin', ZONES['Europe/Berlin'][which], 10.0, 720)
+    kept = stamps[:30] + stamps[540:]
+    t = np.array([(s - kept[0]).total_seconds() for s in kept])
+    out, notes = clock_changes(t, kept[0])
+    # A zone without summer time writes these stamps too: nothing is moved.
+    assert np.array_equal(out, t)
+    assert len(notes) == 1 and 'outage' in notes[0] and how in notes[0]
+    text, op = csv_of(kept)
+    rec = load_record(write_text(tmp_path / 'outage.csv', text))
+    assert any(how in n for n in rec.notes)
+    np.testing.assert_array_equal(rec.signals['op'][:30], op[:30])
+
+
+def test_an_outage_where_no_clock_changes_says_nothing_of_clocks():
+    stamps = plain('2026-07-12 01:30:00', 10.0, 720)
+    kept = stamps[:30] + stamps[540:]
+    t = np.array([(s - kept[0]).total_seconds() for s in kept])
+    out, notes = clock_changes(t, kept[0])
+    assert notes == [] and np.array_equal(out, t)

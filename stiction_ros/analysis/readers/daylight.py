@@ -11,6 +11,10 @@ local date and hour some zone of the time zone database (Python's
 later stamps are then moved by the hour, so that the rows stay contiguous,
 and the record says so.  Anything else stays as it was: a gap, or a
 refusal.  Without a zone database nothing is moved.
+
+An outage of less than a day that spans such a change is kept as the stamps
+read it, since a zone without summer time writes the same stamps, but the
+record says that it may be an hour shorter (spring) or longer (autumn).
 """
 
 from datetime import datetime, timedelta, timezone
@@ -19,6 +23,7 @@ import functools
 import numpy as np
 
 HOUR = 3600.0
+DAY = 86400.0
 _SECOND = timedelta(seconds=1)
 _ONE_HOUR = timedelta(hours=1)
 
@@ -39,6 +44,7 @@ def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]
     # Half a step of slack: a historian's stamps jitter by less.
     slack = 0.5 * step + 1e-6
     out, notes = t.copy(), []
+    moved = set()
     for i in np.flatnonzero(np.abs(np.abs(steps - step) - HOUR) <= slack):
         # To the millisecond: Excel's serial days carry a float's error in the seconds.
         before = start + timedelta(seconds=round(float(t[i]), 3))
@@ -48,12 +54,36 @@ def clock_changes(t: np.ndarray, start: datetime) -> tuple[np.ndarray, list[str]
         if boundary is None:
             continue
         out[i + 1:] += shift
+        moved.add(int(i))
         went = 'forward' if shift < 0 else 'back'
         notes.append(f'time: clocks went {went} an hour at {boundary:%Y-%m-%d %H:%M} '
                      f'(local stamps without an offset, {before:%H:%M:%S} then '
                      f'{after:%H:%M:%S}): read as contiguous rows, none missing; export '
                      'in UTC to be sure')
+    for i in np.flatnonzero((steps > 1.5 * step) & (steps < DAY)):
+        if int(i) not in moved:
+            notes.extend(_outage_note(start + timedelta(seconds=round(float(t[i]), 3)),
+                                      start + timedelta(seconds=round(float(t[i + 1]), 3))))
     return out, notes
+
+
+def _outage_note(before: datetime, after: datetime) -> list[str]:
+    """Return a note where some zone changes its clocks within an outage, else nothing."""
+    hour = before.replace(minute=0, second=0, microsecond=0) + _ONE_HOUR
+    # Back: ``after`` may lie in the hour the new clock repeats, before ``hour`` on the old.
+    while hour <= after + _ONE_HOUR:
+        zones = _seasonal_zones(hour.year)
+        if hour + _ONE_HOUR <= after and any(_goes_forward(hour, tz) for tz in zones):
+            how = 'forward: it may be an hour shorter'
+        elif any(_goes_back(hour, tz) for tz in zones):
+            how = 'back: it may be an hour longer'
+        else:
+            hour += _ONE_HOUR
+            continue
+        return [f'time: the outage from {before:%Y-%m-%d %H:%M:%S} to {after:%H:%M:%S} '
+                f'spans {hour:%Y-%m-%d %H:%M}, when clocks go {how} than the local '
+                'stamps without an offset say (kept as read; export in UTC to be sure)']
+    return []
 
 
 def _boundary(before: datetime, after: datetime, shift: float) -> datetime | None:
@@ -81,6 +111,14 @@ def _zones() -> tuple:
         return tuple(ZoneInfo(name) for name in sorted(available_timezones()))
     except Exception:   # pragma: no cover - a Python without a zone database
         return ()
+
+
+@functools.lru_cache(maxsize=8)
+def _seasonal_zones(year: int) -> tuple:
+    """Return the zones whose offset from UTC changes within ``year``."""
+    def offsets(tz) -> set:
+        return {datetime(year, month, 15, tzinfo=tz).utcoffset() for month in (1, 4, 7, 10)}
+    return tuple(tz for tz in _zones() if len(offsets(tz)) > 1)
 
 
 def _exists(t: datetime, tz) -> bool:
