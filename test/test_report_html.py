@@ -288,3 +288,21 @@ def test_a_loop_without_a_cycle_shows_no_measured_zeros():
                                    'reason': 'no regular cycle'}))
     assert 'no regular cycle' in html
     assert 'amplitude' not in html and 'cycles in the record' not in html
+
+
+def test_the_trends_mark_where_the_detectors_evidence_points(pages, tmp_path):
+    from stiction_ros.viz.figures import detector_marks, trends_panels
+    csv_path = tmp_path / 'no_mv.csv'
+    csv_path.write_bytes((pages['no_mv'][0].parent.parent / 'no_mv.csv').read_bytes())
+    analysis = analyze_file(AnalyzeOptions(str(csv_path)))
+    periods, slips = detector_marks(analysis)
+    evidence = ' '.join(analysis.detection.evidence)
+    named = re.findall(r'stuck period (\d+) s-(\d+) s', evidence)
+    assert named and slips
+    assert {(float(a), float(b)) for a, b in named} <= set(periods)
+    pv_axes = trends_panels(analysis).axes[1]
+    # One shaded span per stuck period, where the detector put it; a dotted line per slip.
+    starts = sorted(p.get_x() for p in pv_axes.patches if p.get_facecolor()[:3] != (0.85,) * 3)
+    assert starts == sorted(a for a, _ in periods)
+    dotted = [ln.get_xdata()[0] for ln in pv_axes.get_lines() if ln.get_linestyle() == ':']
+    assert sorted(dotted) == sorted(slips)

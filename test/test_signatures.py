@@ -355,3 +355,25 @@ def test_yamashita_noise_alone_is_not_informative():
     rng = np.random.default_rng(4)
     sig = yamashita(rng.normal(50, 0.01, 2000), rng.normal(0, 0.01, 2000), 1.0)
     assert sig.stiction is not True
+
+
+def test_the_figure_reads_in_words_on_the_records_clock():
+    from stiction_ros.viz.signature_plots import headline, signature_panels
+    d = loop(STICKY)
+    _, sigs = compute_signatures(d['op'], d['pv'], d['sp'], 1.0)
+    assert '\u00b0 (stiction \u2265 ' in headline(sigs['horch'])
+    # The stretch read starts 500 s into the record: the time axes say so.
+    fig = signature_panels(d['op'], d['pv'], 1.0, sigs, t0=500.0)
+    titles = [ax.get_title() for ax in fig.axes]
+    slips = fig.axes[[t.startswith('slip_events') for t in titles].index(True)]
+    x = slips.get_lines()[0].get_xdata()
+    assert x[0] == 500.0 and x[-1] == 500.0 + len(d['pv']) - 1
+    he = fig.axes[[t.startswith('he_curve_fit') for t in titles].index(True)]
+    assert he.get_lines()[0].get_xdata()[-1] > 500.0
+    # Half-cycles the fit skipped are left open: the fitted lines carry breaks, no chords.
+    t_fit = sigs['he_curve_fit'].curves['t_fit']
+    if np.any(np.diff(t_fit) > 1.5):
+        assert np.isnan(he.get_lines()[1].get_xdata()).any()
+    # Signatures without curves share one panel that names each.
+    text = [ax for ax in fig.axes if ax.get_title() == 'signatures without a picture']
+    assert len(text) == 1 and 'hos_pv_op' in text[0].texts[0].get_text()

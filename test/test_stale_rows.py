@@ -128,6 +128,24 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
     assert any(f'stuck period {first + shift:.0f} s' in line for line in held.evidence)
 
 
+def test_a_slip_events_time_after_held_rows_is_the_records():
+    # The signature counts the fresh rows it read; its evidence line names the
+    # row of the record as given, 40 rows (of 10 s) later than in the clean record.
+    sc = draw_scenario(323, label=True)
+    rec = simulate(sc)
+    at, pause = 20, 40
+    idx = np.concatenate([np.arange(at + 1), np.full(pause, at),
+                          np.arange(at + 1, len(rec['op']))])
+    clean = detect(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
+    held = detect(rec['op'][idx], rec['pv'][idx], rec['sp'][idx], sc.sample_time,
+                  sc.integrating)
+
+    def slip_time(d):
+        line = next(x for x in d.evidence if x.startswith('slip_events on its own: stiction'))
+        return float(line.split('at t = ')[1].split(' s')[0])
+    assert slip_time(held) == slip_time(clean) + pause * sc.sample_time
+
+
 def test_too_short_after_the_holds_says_how_many_rows_the_stretch_had():
     sc, rec = _healthy_record()
     held = np.zeros(330, bool)

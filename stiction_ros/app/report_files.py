@@ -75,8 +75,11 @@ def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None])
                                      fig_dir / 'mismatch.png'))
     if analysis.signatures:
         x = analysis.signature_inputs
+        # The signatures read the longest stretch; their times are the record's.
+        win = analysis.signature_window
+        t0 = float(rec.t[win[0]] - rec.t[0]) if win else 0.0
         paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
-                                      fig_dir / 'signatures.png'))
+                                      fig_dir / 'signatures.png', t0=t0))
     for land in landscapes(analysis):
         paths.append(figures.landscape_figure(land, fig_dir / f'landscape_{land["model"]}.png'))
     drawn = {Path(p).name for p in paths if p}

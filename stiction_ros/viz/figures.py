@@ -23,8 +23,39 @@ def _shade_excluded(ax, record):
         ax.axvspan(ex['start_s'], ex['end_s'] + record.sample_time, color='0.85', lw=0)
 
 
+def detector_marks(analysis) -> tuple[list, list]:
+    """Return the detector's stuck periods (start, end) and slips, in the record's seconds."""
+    details = getattr(getattr(analysis, 'detection', None), 'details', None) or {}
+    stuck = details.get('stuck') or {}
+    return ([(a, b) for a, b, _ in stuck.get('stuck_periods_s', [])],
+            [t for t, _ in stuck.get('slips_s', [])])
+
+
+def _mark(axes, analysis, t0):
+    """Shade the detector's stuck periods and draw its slips, as its evidence lines name them."""
+    periods, slips = detector_marks(analysis)
+    for ax in axes:
+        for k, (a, b) in enumerate(periods):
+            ax.axvspan(t0 + a, t0 + b, color='tab:orange', alpha=0.15, lw=0,
+                       label='stuck (detector)' if k == 0 else None)
+        for k, t in enumerate(slips):
+            ax.axvline(t0 + t, color='tab:red', ls=':', lw=1.0,
+                       label='slip (detector)' if k == 0 else None)
+
+
 def trends_figure(analysis, path, window=None):
-    """Save OP/MV (measured and each model) and PV/SP against time; excluded stretches grey."""
+    """
+    Save OP/MV (measured and each model) and PV/SP against time.
+
+    Excluded stretches are grey; the detector's stuck periods orange and its
+    slips dotted red, at the times its evidence gives.
+    """
+    trends_panels(analysis, window).savefig(path, dpi=90)
+    return path
+
+
+def trends_panels(analysis, window=None) -> Figure:
+    """Return the figure :func:`trends_figure` saves (the last ``window`` s, or all)."""
     rec = analysis.record
     t = rec.t
     keep = slice(None) if window is None else (t >= t[-1] - window)
@@ -39,21 +70,24 @@ def trends_figure(analysis, path, window=None):
         ax.plot(t[keep], mv_hat[keep], color=COLORS[model], lw=1, ls='--',
                 label=f'MV {model}')
     ax.set_ylabel('OP, MV (%)' if rec.has('mv') else 'OP (%)')
-    ax.legend(loc='upper right', fontsize=8, ncol=4)
     _shade_excluded(ax, rec)
     if rows == 2:
         ax = axes[1, 0]
         ax.plot(t[keep], rec.signals['pv'][keep], color='tab:purple', lw=1, label='PV')
         if rec.has('sp'):
-            ax.plot(t[keep], rec.signals['sp'][keep], color='tab:orange', lw=1, label='SP')
+            ax.plot(t[keep], rec.signals['sp'][keep], color='tab:green', lw=1, label='SP')
         ax.set_ylabel(f'PV, SP ({PV_UNITS})')
-        ax.legend(loc='upper right', fontsize=8)
         _shade_excluded(ax, rec)
+    # The detector's times count from the record's first sample.
+    _mark(axes[:, 0], analysis, float(t[0]))
+    for ax in axes[:, 0]:
+        ax.legend(loc='upper right', fontsize=8, ncol=4, framealpha=0.6)
+    # A mark outside the window shown must not widen it.
+    axes[-1, 0].set_xlim(float(t[keep][0]), float(t[keep][-1]))
     axes[-1, 0].set_xlabel('time (s); grey: excluded')
     fig.suptitle(f'{rec.name or rec.path}: time trends')
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    return path
+    return fig
 
 
 def maps_figure(analysis, path):

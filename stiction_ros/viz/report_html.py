@@ -18,23 +18,16 @@ from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as V
 from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
     span, STYLE, table
 from stiction_ros.viz.report_explain import explain_parts
+from stiction_ros.viz.signature_words import SIGNATURES
 
-# What each signature's value is, its unit, and which way its threshold points.
-SIGNATURES = {
-    'horch': ('phase |dphi| of the OP-PV cross-correlation', 'deg', '&ge;'),
-    'he_curve_fit': ('stiction index SI (sine vs triangle fit)', '', '&ge;'),
-    'bicoherence': ('non-linearity index NLI', '', '&gt;'),
-    'ellipse': ('apparent stiction (PV-OP ellipse width)', '% of OP', '&ge;'),
-    'hos_pv_op': ('apparent stiction, if the loop is non-linear', '% of OP', '&ge;'),
-    'yamashita': ('share of samples where OP moved and PV stayed', '', '&gt;'),
-    'slip_events': ('slip events', '', '&ge;'),
-}
 
 CAPTIONS = {
     'trends': 'Time trends. Top: OP and, where recorded, the measured MV and each '
               f'model&rsquo;s MV, in % of travel. Bottom: PV and SP in {PV_UNITS} (the '
               'recording does not state them). '
-              'Grey bands: excluded stretches.',
+              'Grey bands: excluded stretches. Orange bands and dotted red lines: the '
+              'stuck periods and slips the detector found (the first 20 of each), at the times '
+              'its evidence names.',
     'maps': 'Left: MV against OP (both in %), with each model and the ideal valve (MV = OP). '
             f'Right: PV ({PV_UNITS}) against OP (%).',
     # The same figure with one panel, when the record has MV or PV only.

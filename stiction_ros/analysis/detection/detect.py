@@ -23,6 +23,7 @@ from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, Judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable, NOTABLE
 from stiction_ros.analysis.detection.stuck import record_row
+from stiction_ros.analysis.signatures.slip_events import found_text
 from stiction_ros.errors import DetectorFileError
 
 # The forced choice between the two answers, kept for the accuracy study.
@@ -161,8 +162,14 @@ def evidence_lines(ev: dict, ts: float, rows: np.ndarray | None = None,
             # With held rows dropped its counts differ from the report's signature table,
             # which reads every row: say which rows these are.
             rows_read = ', on the fresh rows the detector read' if fresh_only else ''
+            why = s.reason
+            if name == 'slip_events' and s.stiction and rows is not None:
+                # Its time counts the samples read; said on the record's clock.
+                first = s.details['events'][0]
+                why = found_text(int(s.value), first,
+                                 record_row(round(first['t'] / ts), rows) * ts)
             out.append(f'{name} on its own: {"stiction" if s.stiction else "no stiction"} '
-                       f'({s.reason}{rows_read})')
+                       f'({why}{rows_read})')
     return out
 
 

@@ -100,6 +100,14 @@ def classify(op, pv, sp, k, step, op_noise, w=W, span=L):
     return all(facts.values()), {**{k_: bool(v) for k_, v in facts.items()}, **numbers}
 
 
+def found_text(n: int, first: dict, t: float | None = None) -> str:
+    """Return the reason for ``n`` slip events, the first at ``t`` s (its own time if None)."""
+    t = first['t'] if t is None else t
+    return (f'{n} slip event(s): e.g. at t = {t:.0f} s PV jumped {first["pv_step"]:+.3g} '
+            f'toward the set point while OP, after travelling {first["op_travel"]:+.3g}, '
+            'turned back')
+
+
 def slip_events(op, pv, sp, sample_time, integrating=False):
     """Return the :class:`Signature` counting slip events in one record."""
     op = np.asarray(op, dtype=np.float64)
@@ -128,10 +136,7 @@ def slip_events(op, pv, sp, sample_time, integrating=False):
     n = len(events)
     flag = n >= THRESHOLD
     if flag:
-        first = events[0]
-        why = (f'{n} slip event(s): e.g. at t = {first["t"]:.0f} s PV jumped '
-               f'{first["pv_step"]:+.3g} toward the set point while OP, after travelling '
-               f'{first["op_travel"]:+.3g}, turned back')
+        why = found_text(n, events[0])
     else:
         why = (f'no slip event among {len(jumps)} PV jumps'
                + (' (each was a set-point response, moved away from the set point, or '
