@@ -236,3 +236,35 @@ def test_explain_without_mv_says_why_it_cannot_and_keeps_the_rest(tmp_path):
     assert r['mismatch']['effect'] == 'cannot_tell' and r['mismatch']['reason'] == 'no_mv'
     assert 'without the valve position' in proc.stdout
     assert r['stiction']['answer'] in ('stiction', 'no stiction', 'cannot tell')
+
+
+def test_a_valve_that_follows_op_exactly_leaves_nothing_to_locate_or_draw():
+    # MV = OP: every model fits exactly once it has started.  A segment's first sample
+    # is the start state (the median of the first few MV samples), not a prediction:
+    # scored, it had put an MSE and a "worst stretch" on a perfect valve.
+    from stiction_ros.viz.mismatch_figures import mismatch_panels
+    rng = np.random.default_rng(1)
+    n = 1500
+    t = np.arange(n) * 1.0
+    op = 50 + 5 * np.sin(t / 40) + 0.5 * rng.standard_normal(n)
+    report, arrays = explain(t, op, op.copy(), [(0, n)], 1.0, reps=3)
+    assert report['baseline']['mse_fit'] == 0.0 and report['mismatch']['regions'] == []
+    assert report['mismatch']['effect'] == 'none'
+    fig = mismatch_panels(report, arrays)
+    residual = fig.axes[0].get_lines()[0].get_ydata()
+    assert np.isnan(residual[0]) and np.nanmax(np.abs(residual)) == 0.0
+    texts = ' '.join(t.get_text() for ax in fig.axes for t in ax.texts)
+    assert 'too few to show a pattern' in texts
+
+
+def test_an_exact_fit_stays_in_the_held_out_chart():
+    # A log axis cannot show 0: the exact fits, the best ones, had been left out.
+    from matplotlib.figure import Figure
+    from stiction_ros.viz.mismatch_figures import _chain_panel
+    report = {'baseline': {'mse_holdout': 0.0}, 'frictionless': {'mse_holdout': 0.0},
+              'chains': {'backlash': {'mse_holdout': 3.9e-8}}}
+    ax = Figure().subplots()
+    _chain_panel(ax, report)
+    labels = [t.get_text() for t in ax.get_yticklabels()]
+    assert labels == ['plain Kano', 'no friction', 'backlash']
+    assert [t.get_text() for t in ax.texts].count(' 0 (exact)') == 2

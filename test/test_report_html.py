@@ -306,3 +306,18 @@ def test_the_trends_mark_where_the_detectors_evidence_points(pages, tmp_path):
     assert starts == sorted(a for a, _ in periods)
     dotted = [ln.get_xdata()[0] for ln in pv_axes.get_lines() if ln.get_linestyle() == ':']
     assert sorted(dotted) == sorted(slips)
+
+
+def test_the_size_after_explain_is_the_explained_models_wherever_it_is_read(pages):
+    from stiction_ros.app.report_text import size_text
+    path, report = pages['hidden']
+    params = report['mismatch']['model']['params']
+    assert report['mismatch']['model']['name'] == 'kano+measurement_lag'
+    # The plain fit reads the lag as friction; the explained model sizes the valve itself.
+    assert abs(report['fits'][0]['J'] - params['J']) > 0.3
+    text = words(parse(path))
+    assert (f"the valve itself has S {params['S']:.4g} % and J {params['J']:.4g} %"
+            in text)
+    assert f"in place: S={params['S']:.2f} % J={params['J']:.2f} %" in size_text(report)
+    # Without a named effect the size is the fits' alone.
+    assert 'in place' not in size_text(pages['undershoot'][1])

@@ -16,6 +16,7 @@ import numpy as np
 
 from stiction_ros.analysis.detection import probability_text
 from stiction_ros.analysis.judged import judged_text
+from stiction_ros.analysis.mismatch.sentences import explained_size
 
 VERDICT_WORDS = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}
 FRICTION_WORDS = {'stiction': 'stiction claimed', 'backlash': 'backlash (play without stick)',
@@ -173,6 +174,10 @@ def size_text(report: dict) -> str:
             (s0, s1), (j0, j1) = best['S_interval'], best['J_interval']
             ranges = f'; 95 %: S {s0:.2f}-{s1:.2f}, J {j0:.2f}-{j1:.2f}'
         text = f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
+        sized = explained_size(report)
+        if sized:
+            text += (f'; with the physics --explain found in place: S={sized[1]:.2f} % '
+                     f'J={sized[2]:.2f} % ({sized[0]})')
         caution = st.get('size_caution')
         return f'{text}; caution: {caution}' if caution else text
     withheld = st.get('size_withheld')
@@ -227,16 +232,15 @@ def _mismatch_lines(report):
     line += (f'\nmismatch: {", ".join(names) or m["effect"]} (confidence '
              f'{m["confidence"]:.2f}): {told}\nheld-out MSE: plain '
              f'{b["mse_holdout"]:.4g} -> explained {m["mse_holdout"]:.4g}')
-    model = m.get('model') or {}
-    params = model.get('params') or {}
-    found = m.get('effect') not in (None, 'none', 'unexplained')
-    if found and str(model.get('name', '')).startswith('kano+') and 'S' in params \
-            and 'J' in params:
+    sized = explained_size(report)
+    if sized:
         # The size line above is the plain model's; the explained model sizes the valve
         # with the missing physics in place.
-        rest = ', '.join(f'{k} {v:.4g}' for k, v in params.items() if k not in ('S', 'J'))
-        line += (f'\nexplained model: {model.get("name", "")} S={params["S"]:.3f} '
-                 f'J={params["J"]:.3f}' + (f' ({rest})' if rest else '')
+        name, s, j = sized
+        rest = ', '.join(f'{k} {v:.4g}' for k, v in m['model']['params'].items()
+                         if k not in ('S', 'J'))
+        line += (f'\nexplained model: {name} S={s:.3f} J={j:.3f}'
+                 + (f' ({rest})' if rest else '')
                  + ": the valve's own size, with the missing physics in place")
     if m.get('note'):
         line += f'\nnote: {m["note"]}'

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND
 from stiction_ros.analysis.judged import judged_text
+from stiction_ros.analysis.mismatch.sentences import explained_size
 from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
 from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
     span, STYLE, table
@@ -35,7 +36,8 @@ CAPTIONS = {
     'maps_pv': f'PV ({PV_UNITS}) against OP (%).',
     'mismatch': '--explain: the residual MV - model (%) over time with the worst stretches '
                 'shaded and the start of the held-out part; the plain model&rsquo;s error '
-                'after each breakaway against rest time, position and time; the MV-OP map '
+                'after each breakaway against rest time, position and time (with fewer than '
+                'five breakaways, a note instead); the MV-OP map '
                 'before and after; and the candidates&rsquo; scores (LR / threshold, see '
                 'the rule above the candidates table) or, without friction, the held-out '
                 f'MSE ({MSE_UNIT}) of each kind of valve.',
@@ -85,6 +87,12 @@ def _verdict(report: dict) -> list:
             else f'; apparent S {num(st["apparent_S"], 3, "%")}')
     out = [f'<p class="verdict">{verdict} &mdash; {strength}{size}</p>',
            f'<p>{clean(st.get("reason", ""))}</p>']
+    sized = explained_size(report)
+    if sized:
+        name, s, j = sized
+        out.append(f'<p>The size above is the plain model&rsquo;s. With the physics '
+                   f'<code>--explain</code> found in place ({e(name)}, below), the valve '
+                   f'itself has S {num(s, 4, "%")} and J {num(j, 4, "%")}.</p>')
     if how:
         out.append(rule(how))
     if st.get('size_withheld'):

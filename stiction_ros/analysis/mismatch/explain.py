@@ -70,6 +70,17 @@ def model_output(op, mv, segments, S, J, p):
     return out, rest
 
 
+def scored_masks(segments, n: int, n_fit: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return the samples each model is scored on: (fitted part, held-out part)."""
+    valid = np.zeros(n, dtype=bool)
+    for a, b in segments:
+        # A segment's first sample is the model's start state, set from MV, not predicted:
+        # scored, it was a residual of the start alone that the regions then named.
+        valid[a + 1:b] = True
+    before = np.arange(n) < n_fit
+    return valid & before, valid & ~before
+
+
 def _acf1(x):
     x = x[np.isfinite(x)]
     x = x - x.mean()
@@ -236,11 +247,7 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         worst, acfs = dict(calibrated[0]), list(calibrated[1])
     thresholds = {e.eid: max(CHI2_999[len(e.names)], MARGIN * worst[e.eid]) for e in EFFECTS}
 
-    valid = np.zeros(n, dtype=bool)
-    for a, b in segments:
-        valid[a:b] = True
-    fit_mask = valid & (np.arange(n) < n_fit)
-    hold_mask = valid & (np.arange(n) >= n_fit)
+    fit_mask, hold_mask = scored_masks(segments, n, n_fit)
     plain = kk.plain_params()
     mv_base, rest_base = model_output(op, mv, segments, base.S, base.J, plain)
     candidates = []

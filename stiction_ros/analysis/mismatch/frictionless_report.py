@@ -18,11 +18,7 @@ def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, h
                     resolution=RESOLUTION, interval=False)
     mv_base, rest = friction_explain.model_output(op, mv, segments, base.S, base.J,
                                                   friction_explain.kk.plain_params())
-    valid = np.zeros(len(op), dtype=bool)
-    for a, b in segments:
-        valid[a:b] = True
-    fit_mask = valid & (np.arange(len(op)) < n_fit)
-    hold_mask = valid & ~fit_mask
+    fit_mask, hold_mask = friction_explain.scored_masks(segments, len(op), n_fit)
     residual = mv - mv_base
     labels = locate.regime_labels(op, np.where(np.isfinite(mv_base), mv_base, mv), rest)
     labels.update(locate.time_thirds(len(op), fit_mask))

@@ -97,3 +97,20 @@ def chain_effects(fit, se: dict, sample_time: float, quantum: float = 0.0) -> li
                          f'{quantum / math.sqrt(12.0):.2g} % RMS is the steps, not physics.'),
             'params': {'quantum': quantum}})
     return out
+
+
+def explained_size(report: dict) -> tuple[str, float, float] | None:
+    """
+    Return (model name, S, J) of the explained friction model of a report, or None.
+
+    After ``--explain`` names an effect, the size of the model with that
+    physics in place is the valve's own; the fits' size is the plain model's.
+    """
+    m = report.get('mismatch') or {}
+    model = m.get('model') or {}
+    params = model.get('params') or {}
+    found = m.get('effect') not in (None, 'none', 'unexplained')
+    if found and str(model.get('name', '')).startswith('kano+') and 'S' in params \
+            and 'J' in params:
+        return str(model['name']), float(params['S']), float(params['J'])
+    return None
