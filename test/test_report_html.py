@@ -321,3 +321,19 @@ def test_the_size_after_explain_is_the_explained_models_wherever_it_is_read(page
     assert f"in place: S={params['S']:.2f} % J={params['J']:.2f} %" in size_text(report)
     # Without a named effect the size is the fits' alone.
     assert 'in place' not in size_text(pages['undershoot'][1])
+
+
+@pytest.mark.parametrize('name', ['undershoot', 'no_mv'])
+def test_the_page_says_where_its_times_count_from_and_what_wrote_it(pages, name):
+    from stiction_ros import __version__
+    path, report = pages[name]
+    text = words(parse(path))
+    assert report['start_time'] is None  # a simulated CSV of seconds: no clock
+    assert 'The record gives no clock time; every time on this page (s) counts from its ' \
+        'first sample.' in text
+    assert f'by stiction_ros {__version__}' in text
+    model = (report['stiction'].get('detector') or {}).get('model')
+    if model:
+        assert f"detector {model['file']} version {model['version']}" in text
+    else:  # with MV the fits decide, and no detector model was read
+        assert ' version ' not in text

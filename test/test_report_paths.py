@@ -123,3 +123,27 @@ def test_an_unwritable_out_dir_is_each_rows_error_not_the_end_of_the_audit(csv, 
     rows = json.loads(summary.read_text())['rows']
     assert len(rows) == 2 and all('cannot write its report (--out-dir)' in r['error']
                                   for r in rows)
+
+
+def test_a_page_is_written_only_to_html_and_a_report_never_to_html(csv, tmp_path, capsys):
+    # `--html r.json` had replaced the JSON report of an earlier run with a page.
+    report = tmp_path / 'r.json'
+    report.write_text('{"earlier": true}\n')
+    for argv, flag in (([str(csv), '--html', str(report)], '--html'),
+                       ([str(csv), '--json', str(tmp_path / 'r.html')], '--json')):
+        assert main([*argv, '--quiet']) == EXIT_INPUT
+        err = capsys.readouterr().err
+        assert f'({flag}) ' in err and '.html' in err
+    assert report.read_text() == '{"earlier": true}\n'
+    assert not (tmp_path / 'r.html').exists()
+
+
+def test_a_report_that_cannot_be_written_is_refused_before_the_recording_is_read(
+        csv, tmp_path, capsys):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('not a folder\n')
+    target = blocker / 'sub' / 'r.html'
+    assert main([str(csv), '--quiet', '--html', str(target)]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert f'cannot write the HTML report (--html) {target}: {blocker} is not a folder' in err
+    assert 'checked before the recording is read' in err

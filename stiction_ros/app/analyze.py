@@ -26,6 +26,7 @@ from typing import Callable, TYPE_CHECKING
 
 from stiction_ros.app.choices import DATE_ORDERS, LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.app.progress import print_nothing, Step
+from stiction_ros.app.report_files import unwritable
 from stiction_ros.errors import InputError, ReportWriteError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
@@ -255,6 +256,17 @@ class AnalyzeOptions:
         if len(given) == 2 and _same_file(given[0][1], given[1][1]):
             raise InputError(f'--json and --html both name {given[0][1]}: the page would '
                              'overwrite the JSON report; give them different files')
+        for name, path in given:
+            # An HTML page over a JSON report (or the other way) replaced it without a word.
+            page = Path(path).suffix.lower() in ('.html', '.htm')
+            if (name == 'html_path') != page:
+                want = 'an .html' if name == 'html_path' else 'a file not ending in .html'
+                raise InputError(f'{flags[name]} {path}: name {want} (a page is written only '
+                                 'to .html or .htm, a JSON report never)')
+            why = unwritable(path)
+            if why:
+                raise InputError(f'cannot write {flags[name]} {path}: {why} (checked before '
+                                 'the recording is read)')
 
     @staticmethod
     def _number(name, v):

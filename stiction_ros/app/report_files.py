@@ -7,6 +7,7 @@ so writing a report chooses no matplotlib backend for the caller.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Callable, TYPE_CHECKING
 
@@ -16,6 +17,33 @@ if TYPE_CHECKING:  # pragma: no cover - for the annotations only
     from stiction_ros.analysis.pipeline import Analysis
 
 FIGURE_NAMES = ('trends', 'maps', 'mismatch', 'signatures')
+
+
+def unwritable(path: str | Path) -> str | None:
+    """
+    Return why a report cannot be written at ``path``, or None where it can.
+
+    Asked before a recording is read, so that a long analysis is not lost at
+    its end to a read-only folder; an HTML page's figure folder counts too.
+    """
+    p = Path(path)
+    targets = [p]
+    if p.suffix.lower() in ('.html', '.htm'):
+        targets.append(p.with_name(p.stem + '_figures'))
+    for target in targets:
+        if target.exists():
+            if not os.access(target, os.W_OK):
+                return f'{target} is read-only'
+            continue
+        # The nearest folder that exists is where the missing ones would be made.
+        folder = target.parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            return f'{folder} is not a folder'
+        if not os.access(folder, os.W_OK | os.X_OK):
+            return f'the folder {folder} is read-only'
+    return None
 
 
 def write_text(path: str | Path, text: str) -> None:

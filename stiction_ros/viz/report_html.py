@@ -10,8 +10,10 @@ section is a dump of the JSON report (``--json`` has that).
 
 from __future__ import annotations
 
+from datetime import datetime, timezone
 from pathlib import Path
 
+from stiction_ros import __version__
 from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
@@ -220,6 +222,20 @@ def _figures(figures: list, signals: list) -> list:
     return out
 
 
+def _provenance(report: dict) -> str:
+    """Return when the record starts (its times count from there), and what wrote the page."""
+    start = report.get('start_time')
+    when = (f'The record starts at {e(start)}; every time on this page (s) counts from '
+            'there. ' if start else 'The record gives no clock time; every time on this '
+            'page (s) counts from its first sample. ')
+    model = ((report.get('stiction') or {}).get('detector') or {}).get('model') or {}
+    detector = (f'; detector {e(model.get("file", ""))} version {e(model.get("version"))}'
+                if model.get('file') else '')
+    written = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    return (f'<p>{when}Written {written} by stiction_ros {e(__version__)}'
+            f'{detector}.</p>')
+
+
 def render(report: dict, figures: list) -> str:
     """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
     st = report.get('stiction', {})
@@ -232,7 +248,7 @@ def render(report: dict, figures: list) -> str:
              f'{num(report["sample_time"], unit="s")}, {num(report["valid_samples"])} valid; '
              f'signals: {e(", ".join(report["signals"]))}; '
              f'{e(report.get("loop_type", ""))} loop. OP and MV are in % of travel; PV and SP '
-             f'in {PV_UNITS}.</p>']
+             f'in {PV_UNITS}.</p>', _provenance(report)]
     judged = judged_text(report)
     if judged:
         # What the terminal's judged: line says: gaps left part of the record unread.
