@@ -104,7 +104,7 @@ def test_a_record_with_a_gap_is_judged_on_both_stretches_pooled(tmp_path, seed):
                                                  alone[1 - longest].probability]
     want = pooled_probability([d.probability for d in alone], [a, n - b])
     assert det['probability'] == pytest.approx(want, abs=1e-4)
-    assert det['evidence'][0].startswith('2 stretches between gaps, each judged alone')
+    assert det['evidence'][0].startswith('2 stretches between gaps, each judged alone: 0-')
     # The evidence's times are the record's: within the stretch it came from.
     lo, hi = (0, a) if longest == 0 else (b, n)
     assert det['stuck']['stuck_periods_s']

@@ -268,10 +268,11 @@ def pool_stretches(record, detection, integrating, model_path=None):
     # judged alone keeps its own probability.
     p = (base.probability if len(judged) == 1 else
          pooled_probability([d.probability for _, d in judged], [w[1] - w[0] for w, _ in judged]))
+    # In the order they were recorded; a stretch not judged says why.
     parts = ', '.join(f'{t["start_s"]:g}-{t["end_s"]:g} s ({t["samples"]} samples) '
                       + (probability_text(t['probability']) if t['probability'] is not None
-                         else 'not judged')
-                      for t in table)
+                         else f'not judged ({t["not_judged"].replace("_", " ")})')
+                      for t in sorted(table, key=lambda t: t['start_s']))
     line = (f'{len(wins)} stretches between gaps, each judged alone: {parts}; the judged ones '
             f'pooled, their log-odds weighed by their samples: {probability_text(p)} (the '
             f'evidence below is from {record.t[a]:g}-{record.t[b - 1]:g} s)')

@@ -14,7 +14,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from stiction_ros import __version__
-from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND
+from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND, probability_text
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
 from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
@@ -72,8 +72,9 @@ def _verdict(report: dict) -> list:
                f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP). The '
                'score is that reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>).')
     elif st.get('probability') is not None:
-        strength = (f'probability of stiction {num(st["probability"], 3)} (calibrated on '
-                    'simulated loops)')
+        # As the reason under it and the terminal print it: two decimals, three in the tails.
+        strength = (f'probability of stiction {probability_text(st["probability"], DETECTOR_BAND)} '
+                    '(calibrated on simulated loops)')
         how = (f'Without MV a detector trained on simulated loops decides: stiction when its '
                f'calibrated probability is at or above {num(DETECTOR_BAND[1])}, no stiction '
                f'below {num(DETECTOR_BAND[0])}, and cannot tell between, where the evidence '
@@ -247,8 +248,9 @@ def render(report: dict, figures: list) -> str:
              f'({e(report["input"].get("format"))}); {num(report["samples"])} samples at '
              f'{num(report["sample_time"], unit="s")}, {num(report["valid_samples"])} valid; '
              f'signals: {e(", ".join(report["signals"]))}; '
-             f'{e(report.get("loop_type", ""))} loop. OP and MV are in % of travel; PV and SP '
-             f'in {PV_UNITS}.</p>', _provenance(report)]
+             f'{e(report.get("loop_type", ""))} loop. '
+             f'{"OP and MV are" if "mv" in report["signals"] else "OP is"} in % of travel; PV '
+             f'and SP in {PV_UNITS}.</p>', _provenance(report)]
     judged = judged_text(report)
     if judged:
         # What the terminal's judged: line says: gaps left part of the record unread.

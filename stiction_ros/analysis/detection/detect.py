@@ -269,10 +269,7 @@ def answer_of(p: float, band: tuple = BAND) -> str:
 
 def reason_of(p: float, band: tuple = BAND) -> str:
     """Return the sentence that says why ``p`` gave its answer under ``band``."""
-    text = probability_text(p)
-    if float(text) in band and p not in band:
-        # 0.7499 would read "0.75, between 0.25 and 0.75".
-        text = f'{p:.4f}'
+    text = probability_text(p, band)
     if p >= band[1]:
         return f'learned detector: probability of stiction {text} (at or above {band[1]})'
     if p < band[0]:
@@ -283,15 +280,20 @@ def reason_of(p: float, band: tuple = BAND) -> str:
             'test would tell: small OP steps in manual, each held until PV settles')
 
 
-def probability_text(p: float) -> str:
+def probability_text(p: float, band: tuple | None = None) -> str:
     """
     Return ``p`` as the analyzer prints it: two decimals, three in the tails.
 
     The calibration's lowest and highest steps read about 0.001 and 0.999;
     printed to two decimals they would read 0.00 and 1.00, a certainty that a
-    thousand calibration records cannot support.
+    thousand calibration records cannot support.  With the answer's ``band``,
+    a value that would round onto one of its edges gets four decimals.
     """
-    return f'{p:.3f}' if p < 0.01 or p > 0.99 else f'{p:.2f}'
+    text = f'{p:.3f}' if p < 0.01 or p > 0.99 else f'{p:.2f}'
+    if band is not None and float(text) in band and p not in band:
+        # 0.7499 would read "0.75, between 0.25 and 0.75".
+        text = f'{p:.4f}'
+    return text
 
 
 def leaned_on(model: model_file.TreeModel, vec: np.ndarray, large_logit: float | None = None,

@@ -254,4 +254,4 @@ def _judge(result, problem, sample_time, lr, s_max, steps):
               max(result.S, 1e-9) else '')
     result.reason = (f'a sticky valve explains PV better than a linear one (residual variance '
                      f'ratio {ratio:.3g}, likelihood ratio {lr:.3g}); S = {result.S:.3g} % '
-                     f'in {list(result.S_interval)}{j_note}')
+                     f'(95 % range {result.S_interval[0]:.3g}-{result.S_interval[1]:.3g}){j_note}')
