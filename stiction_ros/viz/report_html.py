@@ -73,8 +73,8 @@ def _verdict(report: dict) -> list:
                'score is that reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>).')
     elif st.get('probability') is not None:
         # As the reason under it and the terminal print it: two decimals, three in the tails.
-        strength = (f'probability of stiction {probability_text(st["probability"], DETECTOR_BAND)} '
-                    '(calibrated on simulated loops)')
+        shown = probability_text(st['probability'], DETECTOR_BAND)
+        strength = f'probability of stiction {shown} (calibrated on simulated loops)'
         how = (f'Without MV a detector trained on simulated loops decides: stiction when its '
                f'calibrated probability is at or above {num(DETECTOR_BAND[1])}, no stiction '
                f'below {num(DETECTOR_BAND[0])}, and cannot tell between, where the evidence '
