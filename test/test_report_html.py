@@ -264,12 +264,15 @@ def test_each_candidate_says_why_it_was_or_was_not_named(pages):
 
 def test_the_landscape_of_a_near_zero_mse_is_coloured_relative_to_its_minimum(pages):
     analysis = analyze_file(AnalyzeOptions(str(pages['csv']), model='kano'))
-    assert analysis.fits[0].mse < 1e-3  # the case: a valve the model fits almost exactly
+    assert analysis.fits[0].mse < 1e-3  # the case: a valve the model fits exactly
     (land,) = landscapes(analysis)
     c = landscape_colours(land)
-    # The best cell is 0 (MSE_min) and the map spans decades above it ...
+    # The best cell is 0 and the map spans decades above it.  This fit is exact (MSE at
+    # the floor), so the colours count from the best cell off the floor ...
+    mse = np.asarray(land['mse'])
+    assert analysis.fits[0].mse == 0.0 and c['exact'] == 1
     assert np.min(c['value']) == 0.0 and c['vmax'] >= 2.0
-    assert c['mse_min'] == pytest.approx(np.min(land['mse']))
+    assert c['mse_min'] == pytest.approx(np.min(mse[mse > np.min(mse)]))
     # ... and no flat plateau: at most 5 % of the cells sit at the ceiling (one colour).
     # Capped at 1e4 x MSE_min, as it was, 46 % of this map did.
     assert np.mean(c['over']) <= 0.05
@@ -337,3 +340,16 @@ def test_the_page_says_where_its_times_count_from_and_what_wrote_it(pages, name)
         assert f"detector {model['file']} version {model['version']}" in text
     else:  # with MV the fits decide, and no detector model was read
         assert ' version ' not in text
+
+
+def test_an_exact_fits_landscape_is_coloured_by_the_cells_around_it():
+    # MSE at the floor (an exact fit) made every other cell ten decades up: one colour.
+    from stiction_ros.analysis.identify import EXACT_MSE
+    s, j = np.linspace(4.5, 5.5, 11), np.linspace(1.5, 2.5, 11)
+    mse = 1e-3 * (((s[:, None] - 5.0) / 0.1) ** 2 + ((j[None, :] - 2.0) / 0.3) ** 2)
+    mse = np.maximum(mse, EXACT_MSE)
+    c = landscape_colours({'S': s, 'J': j, 'mse': mse, 'ceiling': None})
+    assert c['exact'] == 1 and c['value'][5, 5] == 0.0
+    assert c['mse_min'] == pytest.approx(np.min(mse[mse > EXACT_MSE]))
+    # The cells around it span the decades they differ by, not twelve.
+    assert 1.5 < c['vmax'] < 3.0 and np.min(c['value'][mse > EXACT_MSE]) == 0.0

@@ -14,6 +14,8 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 import numpy as np
 
+from stiction_ros.analysis.identify import EXACT_MSE
+
 COLORS = {'kano': 'tab:red', 'choudhury': 'tab:green'}
 PV_UNITS = 'PV units'
 
@@ -127,13 +129,19 @@ def landscape_colours(landscape: dict) -> dict:
     """
     mse = np.asarray(landscape['mse'], dtype=float)
     least = float(np.min(mse))
+    # An exact fit sits at the floor (EXACT_MSE): relative to it, every other cell is
+    # ten decades up, one colour.  Such cells are then coloured 0, the rest relative
+    # to the best cell off the floor.
+    exact = mse <= EXACT_MSE * (1 + 1e-9)
+    if exact.any() and not exact.all():
+        least = float(np.min(mse[~exact]))
     ceiling = landscape.get('ceiling')
     over = np.zeros(mse.shape, dtype=bool) if ceiling is None else mse >= ceiling * (1 - 1e-9)
-    value = np.log10(mse / least)
+    value = np.log10(np.maximum(mse, least) / least)
     top = (math.log10(ceiling / least) if over.any()
            else float(np.max(value)) if value.size else 1.0)
     return {'value': value, 'over': over, 'mse_min': least, 'vmax': max(top, 1e-3),
-            'ceiling': ceiling}
+            'ceiling': ceiling, 'exact': int(np.sum(exact)) if not exact.all() else 0}
 
 
 def landscape_figure(landscape, path):
@@ -147,13 +155,17 @@ def landscape_figure(landscape, path):
     shown = np.where(c['over'], c['vmax'] + 1.0, c['value'])
     im = ax.pcolormesh(j, s, shown, shading='nearest',
                        cmap=cmap, vmin=0.0, vmax=c['vmax'])
+    ref = 'MSE_ref' if c['exact'] else 'MSE_min'
     fig.colorbar(im, ax=ax, extend='max' if c['over'].any() else 'neither',
-                 label=f'log10(MSE / MSE_min), MSE_min = {c["mse_min"]:.3g} %²')
+                 label=f'log10(MSE / {ref}), {ref} = {c["mse_min"]:.3g} %²')
     ax.contour(j, s, mse, levels=[landscape['bound']], colors='w', linewidths=1)
-    ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=12, mew=2)
+    ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=10, mew=1.2)
     ax.set_xlabel('J (%)')
     ax.set_ylabel('S (%)')
     title = f'{landscape["model"]}: MSE around the fit (white: 95 % region)'
+    if c['exact']:
+        title += (f'\nexact fit: {c["exact"]} cell(s) at MSE 0 (to {EXACT_MSE:g} %²), '
+                  'coloured 0;\nMSE_ref: the best cell off them')
     if c['over'].any():
         title += f'\ngrey: MSE above {c["ceiling"]:.3g} %², not computed further'
     ax.set_title(title, fontsize=10)

@@ -49,7 +49,9 @@ CAPTIONS = {
 LANDSCAPE = ('MSE of eq. 2.8 around the identified (S, J), both in % (red +). Colour: '
              'log10(MSE / MSE<sub>min</sub>), so 0 is the best point and 1 is ten times its '
              'MSE, whatever the size of MSE<sub>min</sub> (given on the colour bar, in '
-             f'{MSE_UNIT}). White line: the 95 % region of (S, J). Grey, if any: MSE above '
+             f'{MSE_UNIT}); for an exact fit (MSE 0, to 10<sup>-12</sup>) the colours count '
+             'from the best cell off it, and the exact cells are 0. White line: the 95 % '
+             'region of (S, J). Grey, if any: MSE above '
              'the ceiling named in the title (the larger of 10<sup>4</sup> MSE<sub>min'
              '</sub> and ten times the variance of MV, the MSE of a valve frozen at its mean), '
              'not computed further.')
