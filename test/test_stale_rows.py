@@ -102,18 +102,24 @@ def test_tiny_records_have_no_holds(n):
     assert found.count == 0 and found.share == 0.0
 
 
-def test_inserted_holds_change_nothing_but_where_the_evidence_points():
-    # A sticky loop whose historian paused for 40 rows early on: the fresh rows
-    # are the clean record, so the answer is the same, and every stuck period
-    # is reported 40 rows later, where it sits in the record as given.
-    sc = draw_scenario(321, label=True)
+def _paused(seed, at=20, pause=40):
+    """Return the scenario and its detections, clean and with ``pause`` rows held at ``at``."""
+    sc = draw_scenario(seed, label=True)
     rec = simulate(sc)
-    at, pause = 20, 40
     idx = np.concatenate([np.arange(at + 1), np.full(pause, at),
                           np.arange(at + 1, len(rec['op']))])
     clean = detect(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
     held = detect(rec['op'][idx], rec['pv'][idx], rec['sp'][idx], sc.sample_time,
                   sc.integrating)
+    return sc, clean, held
+
+
+def test_inserted_holds_change_nothing_but_where_the_evidence_points():
+    # A sticky loop whose historian paused for 40 rows early on: the fresh rows
+    # are the clean record, so the answer is the same, and every stuck period
+    # is reported 40 rows later, where it sits in the record as given.
+    at, pause = 20, 40
+    sc, clean, held = _paused(321, at, pause)
     # The evidence leans to stiction (at 0.5 or more); held rows change neither it nor the answer.
     assert clean.probability >= 0.5 and held.probability == clean.probability
     assert held.answer == clean.answer == answer_of(clean.probability)
@@ -131,14 +137,8 @@ def test_inserted_holds_change_nothing_but_where_the_evidence_points():
 def test_a_slip_events_time_after_held_rows_is_the_records():
     # The signature counts the fresh rows it read; its evidence line names the
     # row of the record as given, 40 rows (of 10 s) later than in the clean record.
-    sc = draw_scenario(323, label=True)
-    rec = simulate(sc)
-    at, pause = 20, 40
-    idx = np.concatenate([np.arange(at + 1), np.full(pause, at),
-                          np.arange(at + 1, len(rec['op']))])
-    clean = detect(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating)
-    held = detect(rec['op'][idx], rec['pv'][idx], rec['sp'][idx], sc.sample_time,
-                  sc.integrating)
+    pause = 40
+    sc, clean, held = _paused(323, pause=pause)
 
     def slip_time(d):
         line = next(x for x in d.evidence if x.startswith('slip_events on its own: stiction'))
