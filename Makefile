@@ -54,9 +54,10 @@ accuracy: venv
 	  --markdown docs/ACCURACY.md --json docs/accuracy.json
 
 # The verdict on simulated loops read with PV damped after the controller, skewed clocks,
-# historian compression and a coarser grid, beside the same loops as simulated
-# (docs/ROBUSTNESS.md; about 38-57 min on 2 cores: 2 291 s measured 2026-11-30 with the
-# lag check, 3 426 s on 2026-11-29 before it, 1 630 s on another host the day before).
+# historian compression, a coarser grid and without the set point, beside the same loops
+# as simulated (docs/ROBUSTNESS.md; about 65 min on 2 cores: 3 870 s, with the set-point
+# row and beside the test suite, in the run of 2026-12-06 that docs/ROBUSTNESS.md reports;
+# 2 254 s the same day before that row).
 robustness: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.robustness --markdown docs/ROBUSTNESS.md \
 	  --json docs/robustness.json
@@ -139,7 +140,7 @@ bench-detector: venv
 	$(PY) -m bench.detector_bench
 
 # --explain run blind on concealed closed-loop cases, on scoring seeds nothing was tuned
-# on (about 6 min on 2 cores): the friction effects (65 cases), then the instrument and
+# on (about 4 min on 2 cores: 2.5 min and 1.1 min in the run of 2026-11-27): the friction effects (65 cases), then the instrument and
 # timing effects at 0.1-5 s sampling (52 runs); writes docs/EXPLAIN_BENCHMARK.md,
 # docs/explain_bench.json and docs/instrument_bench.json.
 bench-explain: venv
