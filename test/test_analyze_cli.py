@@ -20,7 +20,6 @@ from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
 from stiction_ros.sim.loop_config import load_loop
-from stiction_ros.viz.html_parts import num
 from test_analysis_inputs import write_bag
 
 PLANT_LOOPS = plant_loops_dir()
@@ -191,8 +190,9 @@ def test_balanced_evidence_is_cannot_tell_with_its_probability(tmp_path):
     assert f'cannot tell (the evidence is balanced: probability of stiction ' \
            f'{probability_text(st["probability"])}' in first
     page = html.unescape((tmp_path / 'r.html').read_text())
+    # The same figures as the terminal's line, not a third digit of its own.
     assert (f'class="verdict">cannot tell \u2014 probability of stiction '
-            f'{num(st["probability"], 3)} ') in page
+            f'{probability_text(st["probability"], BAND)} ') in page
 
 
 @pytest.mark.skipif(PLANT_LOOPS is None, reason='shared plant loops not found')

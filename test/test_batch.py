@@ -89,3 +89,29 @@ def test_a_glob_that_matches_nothing_is_a_one_line_error(tmp_path, capsys):
     assert main([str(tmp_path / '*.csv'), '--quiet']) == EXIT_INPUT
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'no file matches' in err[0]
+
+
+def test_an_audit_writes_a_page_per_recording_beside_its_report(
+        plant_folder, tmp_path, capsys):
+    root, picks = plant_folder
+    out = tmp_path / 'reports'
+    pattern = str(root / 'unit[01]' / '*.txt')
+    assert main([pattern, '--jobs', '2', '--quiet', '--json', str(tmp_path / 's.json'),
+                 '--out-dir', str(out), '--pages']) == 0
+    rows = _rows(tmp_path / 's.json')
+    assert set(rows) == {p.name for p in picks[:2]}
+    for row in rows.values():
+        page = Path(row['page'])
+        assert page.parent == out and page.name == Path(row['report']).name[:-5] + '.html'
+        text = page.read_text(encoding='utf-8')
+        report = json.loads(Path(row['report']).read_text())
+        assert report['name'] in text and 'data:image/png;base64,' in text
+        assert (out / (page.stem + '_figures') / 'trends.png').is_file()
+    # One recording: its page where the folder's run would put it.
+    one = tmp_path / 'one'
+    assert main([str(picks[0]), '--quiet', '--out-dir', str(one), '--pages']) == 0
+    assert sorted(p.suffix for p in one.iterdir() if p.is_file()) == ['.html', '.json']
+    # A page needs the folder its report goes to.
+    capsys.readouterr()
+    assert main([pattern, '--quiet', '--pages']) == EXIT_INPUT
+    assert 'give --out-dir' in capsys.readouterr().err

@@ -26,7 +26,7 @@ from stiction_ros.analysis.readers.sniff import AS_CSV
 from stiction_ros.app.analyze import (
     analyze_file, AnalyzeOptions, default_jobs, print_nothing, Say)
 from stiction_ros.app.progress import Step
-from stiction_ros.app.report_files import write_json
+from stiction_ros.app.report_files import write_html, write_json
 from stiction_ros.app.report_text import summary_line, VERDICT_WORDS
 from stiction_ros.errors import InputError, StictionError
 
@@ -117,12 +117,13 @@ def report_names(paths, root) -> dict[str, str]:
 
 
 def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path | None = None,
-                root: str | Path = '.', name: str | None = None) -> dict:
+                root: str | Path = '.', name: str | None = None, pages: bool = False) -> dict:
     """
     Analyse one recording with ``options`` (its ``input`` replaced by ``path``).
 
     Its JSON report goes to ``out_dir`` (if given) as ``name``, by default
-    :func:`report_name` of ``path`` below ``root``.
+    :func:`report_name` of ``path`` below ``root``; with ``pages`` its HTML
+    page too, under the same name ending ``.html``.
 
     Runs in a worker process or on a Dask worker, so it returns plain data and
     never raises for a bad recording.
@@ -136,7 +137,7 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
         said, such as a bag that ends early; empty when nothing), ``notes`` (how
         the file was read, as the terminal's ``note:`` lines: a column
         ignored, cells read as missing, a change of clocks) (and
-        ``why_not``, ``effect``, ``report``) or ``error``; ``seconds``.
+        ``why_not``, ``effect``, ``report``, ``page``) or ``error``; ``seconds``.
 
     """
     t0 = time.perf_counter()
@@ -182,8 +183,22 @@ def analyze_one(path: str | Path, options: AnalyzeOptions, out_dir: str | Path |
                 row.update(ok=False, error=f'cannot write its report (--out-dir) {target}: {why}')
             else:
                 row['report'] = str(target)
+            if pages and row['ok']:
+                _write_page(analysis, target, row)
     row['seconds'] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def _write_page(analysis, report_path: Path, row: dict) -> None:
+    """Write the recording's HTML page beside its JSON report, naming it in ``row``."""
+    page = report_path.with_name(report_path.name[:-len('.json')] + '.html')
+    try:
+        write_html(analysis, page, say=print_nothing)
+    except OSError as exc:
+        row.update(ok=False, error=f'cannot write its page (--pages) {page}: '
+                                   f'{exc.strerror or exc}')
+    else:
+        row['page'] = str(page)
 
 
 def cycle_of(report: dict) -> dict | None:
@@ -233,9 +248,9 @@ def plant_wide(rows: list[dict]) -> PlantWide:
     return shared
 
 
-def _analyze_named(path, name, options, out_dir, root):
+def _analyze_named(path, name, options, out_dir, root, pages=False):
     # For Dask's map, which pairs each path with its name by position.
-    return analyze_one(path, options, out_dir, root, name)
+    return analyze_one(path, options, out_dir, root, name, pages)
 
 
 def _why_not(st: dict) -> str:
@@ -253,7 +268,7 @@ def _why_not(st: dict) -> str:
     return ' '.join(head.split()[:5]) or 'no reason given'
 
 
-def _results(paths, options, jobs, scheduler, out_dir, root):
+def _results(paths, options, jobs, scheduler, out_dir, root, pages=False):
     # Yields rows as they finish, whichever way the work is spread.
     names = report_names(paths, root)
     if scheduler:
@@ -261,19 +276,20 @@ def _results(paths, options, jobs, scheduler, out_dir, root):
         with Client(scheduler) as client:
             # Keywords go to every call alike; each name goes with its own path.
             futures = client.map(_analyze_named, paths, [names[str(p)] for p in paths],
-                                 options=options, out_dir=out_dir, root=root, pure=False)
+                                 options=options, out_dir=out_dir, root=root, pages=pages,
+                                 pure=False)
             for future in dask_completed(futures):
                 yield future.result()
     elif jobs > 1 and len(paths) > 1:
         with ProcessPoolExecutor(max_workers=min(jobs, len(paths)),
                                  initializer=one_blas_thread) as pool:
-            futures = [pool.submit(analyze_one, p, options, out_dir, root, names[str(p)])
+            futures = [pool.submit(analyze_one, p, options, out_dir, root, names[str(p)], pages)
                        for p in paths]
             for future in as_completed(futures):
                 yield future.result()
     else:
         for p in paths:
-            yield analyze_one(p, options, out_dir, root, names[str(p)])
+            yield analyze_one(p, options, out_dir, root, names[str(p)], pages)
 
 
 def progress_step(done: int, total: int, elapsed: float, row: dict) -> Step:
@@ -288,7 +304,8 @@ def progress_step(done: int, total: int, elapsed: float, row: dict) -> Step:
 
 def run_batch(paths: list[str], options: AnalyzeOptions, jobs: int = 1,
               scheduler: str | None = None, out_dir: str | Path | None = None,
-              root: str | Path = '.', say: Say | None = None) -> tuple[list[dict], float]:
+              root: str | Path = '.', say: Say | None = None,
+              pages: bool = False) -> tuple[list[dict], float]:
     """
     Analyse every path with ``options``; return (rows in the order of ``paths``, seconds).
 
@@ -297,7 +314,7 @@ def run_batch(paths: list[str], options: AnalyzeOptions, jobs: int = 1,
     """
     t0 = time.perf_counter()
     rows = {}
-    for row in _results(paths, options, jobs, scheduler, out_dir, root):
+    for row in _results(paths, options, jobs, scheduler, out_dir, root, pages):
         rows[row['input']] = row
         if say is not None:
             say(progress_step(len(rows), len(paths), time.perf_counter() - t0, row))
@@ -353,7 +370,8 @@ class Batch:
 
 
 def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | None = None,
-                 out_dir: str | Path | None = None, say: Say | None = None) -> Batch:
+                 out_dir: str | Path | None = None, say: Say | None = None,
+                 pages: bool = False) -> Batch:
     """
     Analyse every recording in ``paths`` on its own with ``options``.
 
@@ -370,6 +388,8 @@ def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | Non
         local processes.
     out_dir : str or Path, optional
         Where to write a JSON report per recording.
+    pages : bool
+        Also write each recording's HTML page there (``out_dir`` needed).
     say : callable, optional
         Receives the start line and a progress line per recording.
 
@@ -380,10 +400,13 @@ def analyze_many(options: AnalyzeOptions, paths: list[str], scheduler: str | Non
 
     """
     if options.html_path:
-        raise InputError('--html takes one recording; for many use --out-dir (JSON reports)')
+        raise InputError('--html takes one recording; for many use --out-dir (JSON reports) '
+                         'with --pages (a page each)')
+    if pages and out_dir is None:
+        raise InputError('--pages writes each page beside its JSON report: give --out-dir')
     jobs = options.jobs if options.jobs is not None else default_jobs()
     where = f'Dask cluster {scheduler}' if scheduler else f'{jobs} process(es)'
     (say or print_nothing)(f'{len(paths)} recordings from {options.input} on {where}')
     root = options.input if Path(options.input).is_dir() else '.'
-    rows, seconds = run_batch(paths, options, jobs, scheduler, out_dir, root, say)
+    rows, seconds = run_batch(paths, options, jobs, scheduler, out_dir, root, say, pages)
     return Batch(options.input, rows, seconds, where, plant_wide(rows))

@@ -14,7 +14,8 @@ status 2.
 INPUT may also be a folder of recordings or a quoted glob ('plant/**/*.csv'):
 each is analysed on its own, over ``--jobs`` processes or a Dask cluster
 (``--scheduler tcp://HOST:8786``); one line per recording, ``--json`` the
-summary of all, ``--out-dir`` a report per recording (stiction_ros.app.batch).
+summary of all, ``--out-dir`` a report per recording (and with ``--pages``
+its HTML page) (stiction_ros.app.batch).
 Recordings that cycle at one period (within 15 %) over the same hours are
 listed together after them, with the likely source: the loop whose
 stiction probability is 0.5 or more and 0.2 above the others' (README,
@@ -130,6 +131,9 @@ def parser() -> argparse.ArgumentParser:
                       help='run on this Dask cluster (tcp://host:8786) instead of local processes')
     many.add_argument('--out-dir', metavar='DIR', help='write a JSON report per recording here '
                       '(one recording: its report, named as in a folder run)')
+    many.add_argument('--pages', action='store_true',
+                      help='with --out-dir: an HTML page per recording beside its report '
+                      '(figures drawn: a few seconds more each)')
     return p
 
 
@@ -157,21 +161,26 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
     """Analyse every recording in ``paths``; write the ``--json`` summary; return the batch."""
     from stiction_ros.app.batch import analyze_many
     from stiction_ros.app.report_files import write_json
-    batch = analyze_many(options, paths, args.scheduler, args.out_dir, say)
+    batch = analyze_many(options, paths, args.scheduler, args.out_dir, say,
+                         getattr(args, 'pages', False))
     if options.json_path:
         write_json(options.json_path, batch.summary())
         say(f'wrote {options.json_path}')
     return batch
 
 
-def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOptions:
+def one_report_in(options: AnalyzeOptions, out_dir: str | None,
+                  pages: bool = False) -> AnalyzeOptions:
     """
     Return ``options`` with its JSON report in ``out_dir`` (one recording, ``--out-dir``).
 
-    A script that audits a folder file by file gets the report where a
-    folder's run would put it, rather than none without a word.
+    A script that audits a folder file by file gets the report (and with
+    ``pages`` the page) where a folder's run would put it, rather than none
+    without a word.
     """
     if not out_dir:
+        if pages:
+            raise InputError('--pages writes each page beside its JSON report: give --out-dir')
         return options
     if options.json_path:
         raise InputError('--out-dir and --json both say where the report of one recording '
@@ -179,8 +188,13 @@ def one_report_in(options: AnalyzeOptions, out_dir: str | None) -> AnalyzeOption
     from pathlib import Path
     from stiction_ros.app.batch import report_name
     source = Path(options.input).resolve()
-    return dataclasses.replace(options, json_path=str(
-        Path(out_dir) / report_name(source, source.parent)))
+    report = Path(out_dir) / report_name(source, source.parent)
+    if pages and options.html_path:
+        raise InputError('--pages and --html both say where the page of one recording goes; '
+                         'give one of them')
+    page = str(report.with_name(report.name[:-len('.json')] + '.html')) if pages else None
+    return dataclasses.replace(options, json_path=str(report),
+                               html_path=page or options.html_path)
 
 
 def shared_cycle_lines(batch: Batch) -> list[str]:
@@ -242,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
             if paths is not None:
                 batch = run_many(args, options, paths, say)
             else:
-                options = one_report_in(options, args.out_dir)
+                options = one_report_in(options, args.out_dir, args.pages)
                 report = analyze_file(options, say).report
     except DetectorFileError as exc:
         print(f'stiction-analyze: error: {exc}', file=sys.stderr)
