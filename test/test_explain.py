@@ -10,6 +10,7 @@ import pytest
 
 from stiction_ros.analysis.mismatch.effects import Context, EFFECTS, IDS
 from stiction_ros.analysis.mismatch.explain import explain, fit_all
+from stiction_ros.analysis.mismatch.fit import START_SAMPLES
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.models import create
 from stiction_ros.sim.closed_loop import write_csv
@@ -239,16 +240,20 @@ def test_explain_without_mv_says_why_it_cannot_and_keeps_the_rest(tmp_path):
 
 
 def test_a_valve_that_follows_op_exactly_leaves_nothing_to_locate_or_draw():
-    # MV = OP: every model fits exactly once it has started.  A segment's first sample
-    # is the start state (the median of the first few MV samples), not a prediction:
-    # scored, it had put an MSE and a "worst stretch" on a perfect valve.
+    # MV = OP: every model fits exactly once it has started.  The first sample is the
+    # start state (the median of the first few MV samples), not a prediction: located,
+    # it had put a "worst stretch" at t = 0 on a perfect valve.
     from stiction_ros.viz.mismatch_figures import mismatch_panels
     rng = np.random.default_rng(1)
     n = 1500
     t = np.arange(n) * 1.0
     op = 50 + 5 * np.sin(t / 40) + 0.5 * rng.standard_normal(n)
     report, arrays = explain(t, op, op.copy(), [(0, n)], 1.0, reps=3)
-    assert report['baseline']['mse_fit'] == 0.0 and report['mismatch']['regions'] == []
+    assert report['mismatch']['regions'] == []
+    assert all(r['residual_share'] == 0.0 for r in report['mismatch']['regimes'])
+    # The MSE keeps it, as every fit and test scores it: the start alone.
+    start = op[0] - np.median(op[:START_SAMPLES])
+    assert report['baseline']['mse_fit'] == pytest.approx(start ** 2 / 1050, rel=1e-6)
     assert report['mismatch']['effect'] == 'none'
     fig = mismatch_panels(report, arrays)
     residual = fig.axes[0].get_lines()[0].get_ydata()

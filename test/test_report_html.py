@@ -353,3 +353,14 @@ def test_an_exact_fits_landscape_is_coloured_by_the_cells_around_it():
     assert c['mse_min'] == pytest.approx(np.min(mse[mse > EXACT_MSE]))
     # The cells around it span the decades they differ by, not twelve.
     assert 1.5 < c['vmax'] < 3.0 and np.min(c['value'][mse > EXACT_MSE]) == 0.0
+
+
+def test_a_record_with_a_clock_says_where_its_times_count_from():
+    from stiction_ros.viz.report_html import _provenance
+    line = _provenance({'start_time': '2024-09-01T21:55:00', 'stiction': {}})
+    assert 'The record starts at 2024-09-01T21:55:00; every time on this page (s) counts ' \
+        'from there.' in line
+    # A detector file without a version says nothing of one rather than "version None".
+    bare = _provenance({'start_time': None, 'stiction': {'detector': {'model': {
+        'file': 'stiction_detector.npz'}}}})
+    assert 'detector stiction_detector.npz' in bare and 'None' not in bare

@@ -147,3 +147,20 @@ def test_a_report_that_cannot_be_written_is_refused_before_the_recording_is_read
     err = capsys.readouterr().err
     assert f'cannot write the HTML report (--html) {target}: {blocker} is not a folder' in err
     assert 'checked before the recording is read' in err
+
+
+@pytest.mark.parametrize('case', ['folder at the report', 'file at the figures',
+                                  'dangling link'])
+def test_other_paths_a_report_cannot_take_are_refused_before_reading(csv, tmp_path, case):
+    if case == 'folder at the report':
+        (tmp_path / 'r.json').mkdir()
+        argv, why = ['--json', str(tmp_path / 'r.json')], 'is a folder'
+    elif case == 'file at the figures':
+        (tmp_path / 'r_figures').write_text('')
+        argv, why = ['--html', str(tmp_path / 'r.html')], 'is not a folder'
+    else:
+        (tmp_path / 'gone').symlink_to(tmp_path / 'nowhere')
+        argv, why = ['--json', str(tmp_path / 'gone' / 'r.json')], 'is a link to nothing'
+    with pytest.raises(InputError, match=why):
+        AnalyzeOptions(str(csv), **{('json_path' if argv[0] == '--json' else 'html_path'):
+                                    argv[1]})

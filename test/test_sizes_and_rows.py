@@ -249,3 +249,27 @@ def test_rows_a_historian_interpolated_are_named_and_read_as_they_are():
     # Half the record: said right after what the detector leaned on.
     assert d.evidence[0].startswith('the learned detector leaned most on')
     assert d.evidence[1].startswith(f'{len(inner)} of {len(op)} rows lie exactly midway')
+
+
+def test_slip_times_count_from_the_records_start_after_a_gap(tmp_path):
+    # A gap early on: the signatures read the stretch after it, and every slip they
+    # name is given on the record's clock, as the detector's evidence and figures are.
+    from data_paths import plant_loops_dir
+    from stiction_ros.analysis.readers import load_record
+    loops = plant_loops_dir()
+    if loops is None:
+        pytest.skip('the shared plant loops are not beside this checkout')
+    # A sticky valve whose slip-event signature finds slips throughout (7 on the whole).
+    (path,) = (loops / 'stiction').glob('*FIC46005_0902*')
+    rec = load_record(str(path))
+    cols = ('t', 'sp', 'pv', 'op')
+    data = np.column_stack([rec.t - rec.t[0]] + [rec.signals[c] for c in cols[1:]])
+    data[100:130, 2] = np.nan
+    np.savetxt(tmp_path / 'gap.csv', data, delimiter=',', header=','.join(cols), comments='')
+    report = analyze_file(AnalyzeOptions(input=str(tmp_path / 'gap.csv'))).report
+    win = report['signature_window']
+    assert win['start_s'] >= 130 * report['sample_time']
+    sig = report['stiction']['signatures']['slip_events']
+    events = sig['details']['events']
+    assert events and all(win['start_s'] <= e['t'] <= win['end_s'] for e in events)
+    assert f"at t = {events[0]['t']:.0f} s" in sig['reason']

@@ -363,6 +363,11 @@ def analyze(record: Record, options: Options | None = None,
         # first ones), so that slip times count from the row the signatures start on.
         shift = realigned_rows(detection)
         first, last = win[0] + max(0, -shift), win[1] - 1 - max(0, shift)
+        if 'slip_events' in sigs:
+            from stiction_ros.analysis.signatures.slip_events import on_record_clock
+            # Counted on the stretch read; said on the record's clock, as all else is.
+            sigs['slip_events'] = on_record_clock(sigs['slip_events'],
+                                                  float(record.t[first] - record.t[0]))
         report['signature_window'] = {'start_s': float(record.t[first]),
                                       'end_s': float(record.t[last]),
                                       'samples': int(last + 1 - first), 'held': win[2]}

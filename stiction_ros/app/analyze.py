@@ -26,7 +26,6 @@ from typing import Callable, TYPE_CHECKING
 
 from stiction_ros.app.choices import DATE_ORDERS, LOOP_TYPES, MODEL_CHOICES
 from stiction_ros.app.progress import print_nothing, Step
-from stiction_ros.app.report_files import unwritable
 from stiction_ros.errors import InputError, ReportWriteError
 
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
@@ -263,6 +262,8 @@ class AnalyzeOptions:
                 want = 'an .html' if name == 'html_path' else 'a file not ending in .html'
                 raise InputError(f'{flags[name]} {path}: name {want} (a page is written only '
                                  'to .html or .htm, a JSON report never)')
+            # Imported here: report_files pulls in the analysis, which --help need not load.
+            from stiction_ros.app.report_files import unwritable
             why = unwritable(path)
             if why:
                 raise InputError(f'cannot write {flags[name]} {path}: {why} (checked before '

@@ -197,6 +197,10 @@ def _write_page(analysis, report_path: Path, row: dict) -> None:
     except OSError as exc:
         row.update(ok=False, error=f'cannot write its page (--pages) {page}: '
                                    f'{exc.strerror or exc}')
+    except Exception as exc:
+        # A bug in drawing one page must not end an audit of thousands: the row names it.
+        row.update(ok=False, error=f'its page (--pages) {page} failed: a bug, please report: '
+                                   f'{type(exc).__name__}: {exc}')
     else:
         row['page'] = str(page)
 

@@ -27,17 +27,23 @@ def unwritable(path: str | Path) -> str | None:
     its end to a read-only folder; an HTML page's figure folder counts too.
     """
     p = Path(path)
-    targets = [p]
+    targets = [(p, False)]
     if p.suffix.lower() in ('.html', '.htm'):
-        targets.append(p.with_name(p.stem + '_figures'))
-    for target in targets:
+        targets.append((p.with_name(p.stem + '_figures'), True))
+    for target, folder_wanted in targets:
+        if target.is_symlink() and not target.exists():
+            return f'{target} is a link to nothing'
         if target.exists():
+            if target.is_dir() != folder_wanted:
+                return f'{target} is {"not " if folder_wanted else ""}a folder'
             if not os.access(target, os.W_OK):
                 return f'{target} is read-only'
             continue
         # The nearest folder that exists is where the missing ones would be made.
         folder = target.parent
         while not folder.exists() and folder != folder.parent:
+            if folder.is_symlink():
+                return f'{folder} is a link to nothing'
             folder = folder.parent
         if not folder.is_dir():
             return f'{folder} is not a folder'
@@ -103,9 +109,10 @@ def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None])
                                      fig_dir / 'mismatch.png'))
     if analysis.signatures:
         x = analysis.signature_inputs
-        # The signatures read the longest stretch; their times are the record's.
-        win = analysis.signature_window
-        t0 = float(rec.t[win[0]] - rec.t[0]) if win else 0.0
+        # The signatures read the longest stretch (OP's rows kept after a realignment);
+        # their times are the record's.
+        win = analysis.report.get('signature_window')
+        t0 = float(win['start_s'] - rec.t[0]) if win else 0.0
         paths.append(signature_figure(x['op'], x['pv'], rec.sample_time, analysis.signatures,
                                       fig_dir / 'signatures.png', t0=t0))
     for land in landscapes(analysis):

@@ -14,7 +14,7 @@ import textwrap
 
 import numpy as np
 
-from stiction_ros.analysis.detection import probability_text
+from stiction_ros.analysis.detection import BAND, probability_text
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
 
@@ -156,7 +156,7 @@ def _verdict(report):
         # Balanced evidence has a probability too; its reason states it.
         how = st.get('reason', '')
     elif st.get('probability') is not None:
-        how = f'probability {probability_text(st["probability"])}'
+        how = f'probability {probability_text(st["probability"], BAND)}'
     else:
         how = f'score {st["score"]:.2f}'
     name = report.get('name') or report['input'].get('path')

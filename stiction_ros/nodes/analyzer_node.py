@@ -19,7 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from stiction_ros.analysis.detection import probability_text
+from stiction_ros.analysis.detection import BAND, probability_text
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.errors import InputError, StictionError
 from stiction_ros.nodes.params import declare, Param
@@ -40,7 +40,8 @@ def level_of(report, error_s):
     size = max(s for s in sizes if s is not None)
     level = DiagnosticStatus.ERROR if size >= error_s else DiagnosticStatus.WARN
     if st.get('probability') is not None:
-        return level, (f'stiction detected (probability {probability_text(st["probability"])}'
+        shown = probability_text(st['probability'], BAND)
+        return level, (f'stiction detected (probability {shown}'
                        + (f', S about {size:.2f} %)' if size else ')'))
     return level, f'stiction detected (score {st["score"]:.2f}, S about {size:.2f} %)'
 

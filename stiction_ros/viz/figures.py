@@ -158,14 +158,17 @@ def landscape_figure(landscape, path):
     ref = 'MSE_ref' if c['exact'] else 'MSE_min'
     fig.colorbar(im, ax=ax, extend='max' if c['over'].any() else 'neither',
                  label=f'log10(MSE / {ref}), {ref} = {c["mse_min"]:.3g} %²')
-    ax.contour(j, s, mse, levels=[landscape['bound']], colors='w', linewidths=1)
+    if not c['exact']:
+        # An exact fit's bound is 0: its 95 % region is the exact cells, named in the title.
+        ax.contour(j, s, mse, levels=[landscape['bound']], colors='w', linewidths=1)
     ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=10, mew=1.2)
     ax.set_xlabel('J (%)')
     ax.set_ylabel('S (%)')
-    title = f'{landscape["model"]}: MSE around the fit (white: 95 % region)'
+    title = (f'{landscape["model"]}: MSE around the fit (white: 95 % region)' if not c['exact']
+             else f'{landscape["model"]}: MSE around the fit')
     if c['exact']:
         title += (f'\nexact fit: {c["exact"]} cell(s) at MSE 0 (to {EXACT_MSE:g} %²), '
-                  'coloured 0;\nMSE_ref: the best cell off them')
+                  'coloured 0:\nthe 95 % region; MSE_ref: the best cell off them')
     if c['over'].any():
         title += f'\ngrey: MSE above {c["ceiling"]:.3g} %², not computed further'
     ax.set_title(title, fontsize=10)

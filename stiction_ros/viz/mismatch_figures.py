@@ -24,8 +24,9 @@ def mismatch_panels(report, arrays) -> Figure:
     few = len(rows) < FEW_BREAKAWAYS
     fig = Figure(figsize=(12, 7.5 if few else 11))
     ax = fig.subplots(2 if few else 3, 2)
-    # Only the samples each model is scored on: a segment's first is its start state.
+    # The samples each model is scored on, less the first: the start state, no prediction.
     scored = a['fit_mask'] | a['hold_mask']
+    scored[np.argmax(scored)] = False
     r0 = np.where(scored, mv - a['mv_baseline'], np.nan)
     r1 = np.where(scored, mv - a['mv_explained'], np.nan)
     m = report['mismatch']

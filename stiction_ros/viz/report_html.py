@@ -43,8 +43,10 @@ CAPTIONS = {
                 'before and after; and the candidates&rsquo; scores (LR / threshold, see '
                 'the rule above the candidates table) or, without friction, the held-out '
                 f'MSE ({MSE_UNIT}) of each kind of valve.',
-    'signatures': 'One panel per signature: its value against its threshold and its verdict '
-                  f'in the title. PV is in {PV_UNITS}, OP in %.',
+    'signatures': 'One panel per signature that has a picture: in its title what the value '
+                  'measures, the value against its threshold, the verdict and, when '
+                  'undetermined, why; the signatures without a picture share one text panel. '
+                  f'Times count from the record&rsquo;s start. PV is in {PV_UNITS}, OP in %.',
 }
 LANDSCAPE = ('MSE of eq. 2.8 around the identified (S, J), both in % (red +). Colour: '
              'log10(MSE / MSE<sub>min</sub>), so 0 is the best point and 1 is ten times its '
@@ -95,9 +97,10 @@ def _verdict(report: dict) -> list:
     sized = explained_size(report)
     if sized:
         name, s, j = sized
-        out.append(f'<p>The size above is the plain model&rsquo;s. With the physics '
-                   f'<code>--explain</code> found in place ({e(name)}, below), the valve '
-                   f'itself has S {num(s, 4, "%")} and J {num(j, 4, "%")}.</p>')
+        out.append(f'<p>The size above is the fits&rsquo;, from valve models without the '
+                   f'physics <code>--explain</code> found. With it in place ({e(name)}, '
+                   f'below), the valve itself has S {num(s, 4, "%")} and J '
+                   f'{num(j, 4, "%")}.</p>')
     if how:
         out.append(rule(how))
     if st.get('size_withheld'):
@@ -232,8 +235,8 @@ def _provenance(report: dict) -> str:
             'there. ' if start else 'The record gives no clock time; every time on this '
             'page (s) counts from its first sample. ')
     model = ((report.get('stiction') or {}).get('detector') or {}).get('model') or {}
-    detector = (f'; detector {e(model.get("file", ""))} version {e(model.get("version"))}'
-                if model.get('file') else '')
+    version = f' version {e(model["version"])}' if model.get('version') is not None else ''
+    detector = f'; detector {e(model["file"])}{version}' if model.get('file') else ''
     written = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
     return (f'<p>{when}Written {written} by stiction_ros {e(__version__)}'
             f'{detector}.</p>')

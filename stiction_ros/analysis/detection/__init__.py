@@ -15,11 +15,12 @@ probability and evidence).  :mod:`dataset`, :mod:`deadband_like`,
 :mod:`dataset` only to key its cache of simulated records' logits.
 """
 
-from stiction_ros.analysis.detection.detect import ANSWERS, detect, Detection, load_model, \
-    probability_text
+from stiction_ros.analysis.detection.detect import ANSWERS, BAND, detect, Detection, \
+    load_model, probability_text
 from stiction_ros.analysis.detection.features import extract, FEATURE_NAMES
 from stiction_ros.analysis.detection.model_file import DetectorFileError
 from stiction_ros.analysis.detection.resolve import Judgeable, judgeable, period_sanity
 
-__all__ = ['ANSWERS', 'detect', 'Detection', 'DetectorFileError', 'extract', 'FEATURE_NAMES',
-           'judgeable', 'Judgeable', 'load_model', 'period_sanity', 'probability_text']
+__all__ = ['ANSWERS', 'BAND', 'detect', 'Detection', 'DetectorFileError', 'extract',
+           'FEATURE_NAMES', 'judgeable', 'Judgeable', 'load_model', 'period_sanity',
+           'probability_text']

@@ -74,11 +74,24 @@ def scored_masks(segments, n: int, n_fit: int) -> tuple[np.ndarray, np.ndarray]:
     """Return the samples each model is scored on: (fitted part, held-out part)."""
     valid = np.zeros(n, dtype=bool)
     for a, b in segments:
-        # A segment's first sample is the model's start state, set from MV, not predicted:
-        # scored, it was a residual of the start alone that the regions then named.
-        valid[a + 1:b] = True
+        valid[a:b] = True
     before = np.arange(n) < n_fit
     return valid & before, valid & ~before
+
+
+def without_start(mask: np.ndarray, segments) -> np.ndarray:
+    """
+    Return ``mask`` less the record's first sample, where the model starts.
+
+    Its output there is the start state, set from the measured MV, not a
+    prediction: a residual there says where the model began, not what it
+    misses, so the regions and regimes are located without it (the MSEs keep
+    it, as every fit and test scores it).
+    """
+    out = mask.copy()
+    if len(segments):
+        out[segments[0][0]] = False
+    return out
 
 
 def _acf1(x):
@@ -311,8 +324,9 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
         'mismatch': {
             'effect': effect, 'confidence': round(float(confidence), 4),
             'explanation': explanation,
-            'regions': locate.regions(t, residual, labels, fit_mask),
-            'regimes': locate.regime_shares(residual, labels, fit_mask),
+            'regions': locate.regions(t, residual, labels, without_start(fit_mask, segments)),
+            'regimes': locate.regime_shares(residual, labels,
+                                            without_start(fit_mask, segments)),
             'model': model,
             'mse_fit': masked_mse(mv_explained, mv, fit_mask),
             'mse_holdout': masked_mse(mv_explained, mv, hold_mask),

@@ -19,6 +19,7 @@ def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, h
     mv_base, rest = friction_explain.model_output(op, mv, segments, base.S, base.J,
                                                   friction_explain.kk.plain_params())
     fit_mask, hold_mask = friction_explain.scored_masks(segments, len(op), n_fit)
+    located = friction_explain.without_start(fit_mask, segments)
     residual = mv - mv_base
     labels = locate.regime_labels(op, np.where(np.isfinite(mv_base), mv_base, mv), rest)
     labels.update(locate.time_thirds(len(op), fit_mask))
@@ -34,8 +35,8 @@ def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, h
         'mismatch': {
             'effect': effect, 'effects': effects,
             'confidence': 1.0, 'explanation': explanation,
-            'regions': locate.regions(t, residual, labels, fit_mask),
-            'regimes': locate.regime_shares(residual, labels, fit_mask),
+            'regions': locate.regions(t, residual, labels, located),
+            'regimes': locate.regime_shares(residual, labels, located),
             'model': {'name': name, 'params': {'S': chain.S, 'J': chain.J, **chain.params}},
             'mse_fit': masked_mse(mv_chain, mv, fit_mask),
             'mse_holdout': masked_mse(mv_chain, mv, hold_mask),

@@ -72,18 +72,46 @@ def _outage_note(before: datetime, after: datetime) -> list[str]:
     hour = before.replace(minute=0, second=0, microsecond=0) + _ONE_HOUR
     # Back: ``after`` may lie in the hour the new clock repeats, before ``hour`` on the old.
     while hour <= after + _ONE_HOUR:
-        zones = _seasonal_zones(hour.year)
-        if hour + _ONE_HOUR <= after and any(_goes_forward(hour, tz) for tz in zones):
+        change = _changes(hour.year).get(hour)
+        if change == 'forward' and hour + _ONE_HOUR <= after:
             how = 'forward: it may be an hour shorter'
-        elif any(_goes_back(hour, tz) for tz in zones):
+        elif change == 'back':
             how = 'back: it may be an hour longer'
         else:
             hour += _ONE_HOUR
             continue
-        return [f'time: the outage from {before:%Y-%m-%d %H:%M:%S} to {after:%H:%M:%S} '
-                f'spans {hour:%Y-%m-%d %H:%M}, when clocks go {how} than the local '
-                'stamps without an offset say (kept as read; export in UTC to be sure)']
+        return [f'time: the outage from {before:%Y-%m-%d %H:%M:%S} to '
+                f'{after:%Y-%m-%d %H:%M:%S} spans {hour:%Y-%m-%d %H:%M}, when clocks go '
+                f'{how} than the local stamps without an offset say (kept as read; export '
+                'in UTC to be sure)']
     return []
+
+
+@functools.lru_cache(maxsize=8)
+def _changes(year: int) -> dict:
+    """
+    Return {whole hour on the old clock: 'forward' or 'back'} of ``year``'s changes by an hour.
+
+    Read once a year from every zone whose offset changes that year, so that
+    a record with thousands of short outages looks each hour up, not every zone.
+    """
+    out: dict = {}
+    start = datetime(year, 1, 1, tzinfo=timezone.utc)
+    for tz in _seasonal_zones(year):
+        days = [start + timedelta(days=d) for d in range(367)]
+        offsets = [d.astimezone(tz).utcoffset() for d in days]
+        for d in range(366):
+            if offsets[d] == offsets[d + 1]:
+                continue
+            # Within the day, to the quarter hour (some zones change at half past).
+            t = days[d]
+            while t.astimezone(tz).utcoffset() == offsets[d]:
+                t += timedelta(minutes=15)
+            old, new = offsets[d], t.astimezone(tz).utcoffset()
+            local = (t + old).replace(tzinfo=None)
+            if local.minute == 0 and local.year == year and abs(new - old) == _ONE_HOUR:
+                out[local] = 'forward' if new > old else 'back'
+    return out
 
 
 def _boundary(before: datetime, after: datetime, shift: float) -> datetime | None:

@@ -28,6 +28,8 @@ plant records.  It applies to self-regulating loops only: through an
 integrator a slip changes PV's slope, not its level.
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from stiction_ros.analysis.signatures.result import Signature
@@ -106,6 +108,16 @@ def found_text(n: int, first: dict, t: float | None = None) -> str:
     return (f'{n} slip event(s): e.g. at t = {t:.0f} s PV jumped {first["pv_step"]:+.3g} '
             f'toward the set point while OP, after travelling {first["op_travel"]:+.3g}, '
             'turned back')
+
+
+def on_record_clock(sig: Signature, offset: float) -> Signature:
+    """Return ``sig`` with its events' times, and its reason's, ``offset`` s later."""
+    events = sig.details.get('events') or []
+    if not offset or not events:
+        return sig
+    events = [{**e, 't': e['t'] + offset} for e in events]
+    reason = found_text(int(sig.value or 0), events[0]) if sig.stiction else sig.reason
+    return replace(sig, reason=reason, details={**sig.details, 'events': events})
 
 
 def slip_events(op, pv, sp, sample_time, integrating=False):
