@@ -107,6 +107,13 @@ def test_an_audit_writes_a_page_per_recording_beside_its_report(
         report = json.loads(Path(row['report']).read_text())
         assert report['name'] in text and 'data:image/png;base64,' in text
         assert (out / (page.stem + '_figures') / 'trends.png').is_file()
+    # An index beside them lists every recording, each linked to its page.
+    index = (out / 'index.html').read_text(encoding='utf-8')
+    for row in rows.values():
+        cls = {'stiction': 'yes', 'no stiction': 'no'}.get(row['answer'], 'und')
+        assert f'<a href="{Path(row["page"]).name}">' in index
+        assert f'<span class="{cls}">{row["answer"]}</span>' in index
+    assert '2 recordings' in index
     # One recording: its page where the folder's run would put it.
     one = tmp_path / 'one'
     assert main([str(picks[0]), '--quiet', '--out-dir', str(one), '--pages']) == 0

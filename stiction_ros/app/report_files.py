@@ -127,3 +127,12 @@ def write_html(analysis: Analysis, path: str | Path, say: Callable[[str], None])
     write_text(html_path, render(analysis.report, [p for p in paths if p]))
     say(f'wrote {html_path} (figures in {fig_dir})')
     return html_path
+
+
+def write_index(summary: dict, folder: str | Path) -> Path:
+    """Write ``index.html`` in ``folder``: a row per recording of a run, linked to its page."""
+    # Imported here: the page is needed only for --pages.
+    from stiction_ros.viz.index_html import render_index
+    path = Path(folder) / 'index.html'
+    write_text(path, render_index(summary, folder))
+    return path

@@ -15,7 +15,7 @@ INPUT may also be a folder of recordings or a quoted glob ('plant/**/*.csv'):
 each is analysed on its own, over ``--jobs`` processes or a Dask cluster
 (``--scheduler tcp://HOST:8786``); one line per recording, ``--json`` the
 summary of all, ``--out-dir`` a report per recording (and with ``--pages``
-its HTML page) (stiction_ros.app.batch).
+its HTML page, and an index.html linking them) (stiction_ros.app.batch).
 Recordings that cycle at one period (within 15 %) over the same hours are
 listed together after them, with the likely source: the loop whose
 stiction probability is 0.5 or more and 0.2 above the others' (README,
@@ -160,12 +160,14 @@ def run_many(args: argparse.Namespace, options: AnalyzeOptions, paths: list[str]
              say: Say) -> Batch:
     """Analyse every recording in ``paths``; write the ``--json`` summary; return the batch."""
     from stiction_ros.app.batch import analyze_many
-    from stiction_ros.app.report_files import write_json
-    batch = analyze_many(options, paths, args.scheduler, args.out_dir, say,
-                         getattr(args, 'pages', False))
+    from stiction_ros.app.report_files import write_index, write_json
+    pages = getattr(args, 'pages', False)
+    batch = analyze_many(options, paths, args.scheduler, args.out_dir, say, pages)
     if options.json_path:
         write_json(options.json_path, batch.summary())
         say(f'wrote {options.json_path}')
+    if pages:
+        say(f'wrote {write_index(batch.summary(), args.out_dir)}')
     return batch
 
 
