@@ -177,3 +177,55 @@ def test_the_summary_says_where_a_recording_left_its_offline_twin(tmp_path):
     assert s['signals']['op']['first_difference_s'] == 37.0
     assert abs(s['signals']['op']['max_abs_difference'] - 0.066) < 1e-12
     assert 'first difference from the offline run: op at 37 s' in format_summary(s)
+
+
+def test_a_split_bag_without_its_metadata_is_read_in_the_order_rosbag2_numbered_it(tmp_path):
+    bag = write(tmp_path / 'b')
+    (mcap,) = bag.glob('*.mcap')
+    (bag / 'metadata.yaml').unlink()
+    # x_2 sorts after x_10 as text; rosbag2 wrote it first.
+    for name in ('b_10.mcap', 'b_2.mcap'):
+        (bag / name).write_bytes(mcap.read_bytes())
+    mcap.unlink()
+    from stiction_ros.bag.reader import mcap_files
+    assert [f.name for f in mcap_files(bag)] == ['b_2.mcap', 'b_10.mcap']
+
+
+def test_metadata_that_is_no_text_is_read_past(tmp_path):
+    bag = write(tmp_path / 'b')
+    (bag / 'metadata.yaml').write_bytes(b'\xff\xfe\x00')
+    assert read_bag(bag).topic('op').count > 0
+
+
+def test_a_second_repair_keeps_the_first_original(tmp_path):
+    bag = write(tmp_path / 'b')
+    mcap = bag / 'b_0.mcap'
+    whole = mcap.read_bytes()
+    mcap.write_bytes(whole[:len(whole) // 2])
+    repair_bag(bag)
+    first = (bag / 'b_0.mcap.damaged').read_bytes()
+    mcap.write_bytes(mcap.read_bytes()[:len(mcap.read_bytes()) // 2])
+    repair_bag(bag)
+    assert (bag / 'b_0.mcap.damaged').read_bytes() == first
+    assert (bag / 'b_0.mcap.damaged2').is_file()
+
+
+def test_a_damaged_chunk_makes_the_bag_incomplete_and_names_what_is_lost(tmp_path):
+    bag = write(tmp_path / 'b')
+    mcap = bag / 'b_0.mcap'
+    data = bytearray(mcap.read_bytes())
+
+    def count(b):
+        return sum(t.count for t in b.topics.values())
+    whole = count(read_bag(bag))
+    at = int(len(data) * 0.4)     # inside a chunk (zstd): its messages cannot be read
+    data[at:at + 200] = bytes(200)
+    mcap.write_bytes(bytes(data))
+    got = read_bag(bag)
+    assert count(got) < whole
+    # It had read as complete, and "nothing to repair", with a chunk's messages gone.
+    assert not got.complete
+    lost = [w for w in got.warnings if 'is damaged' in w]
+    assert lost and 'messages are lost' in lost[0]
+    assert 'recovered' in repair_bag(bag)
+    assert read_bag(bag).complete and count(read_bag(bag)) == count(got)

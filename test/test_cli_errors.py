@@ -33,10 +33,61 @@ def test_stiction_sim_refuses_a_duration_that_is_no_time(value, capsys):
     _one_line(capsys, '--duration must be a positive number of seconds')
 
 
-def test_stiction_sim_names_a_csv_it_cannot_write(capsys):
+def test_stiction_sim_names_a_csv_it_cannot_write(tmp_path, capsys):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    target = blocker / 'x' / 's.csv'
     assert sim.main(['concentration_loop.yaml', '--quiet', '--duration', '10',
-                     '-o', '/nonexistent-dir/x/s.csv']) == 2
-    _one_line(capsys, 'cannot write /nonexistent-dir/x/s.csv')
+                     '-o', str(target)]) == 2
+    _one_line(capsys, f'cannot write {target}', 'is not a folder', 'before the run')
+    # A missing folder is made, as the analyzer's reports do.
+    made = tmp_path / 'new' / 'deeper' / 's.csv'
+    assert sim.main(['concentration_loop.yaml', '--quiet', '--duration', '10',
+                     '-o', str(made)]) == 0 and made.is_file()
+
+
+@pytest.mark.parametrize('name', ['run.mcap', 'loop.yaml'])
+def test_stiction_sim_writes_csv_only_and_never_over_its_loop_file(tmp_path, capsys, name):
+    loop_file = tmp_path / 'loop.yaml'
+    shutil.copy(config_file('concentration_loop.yaml'), loop_file)
+    before = loop_file.read_bytes()
+    assert sim.main([str(loop_file), '--quiet', '--duration', '10',
+                     '-o', str(tmp_path / name)]) == 2
+    _one_line(capsys, 'name a .csv file')
+    assert loop_file.read_bytes() == before and not (tmp_path / 'run.mcap').exists()
+
+
+@pytest.mark.parametrize('setting, words', [
+    ('noise.mv_std=abc', 'noise.mv_std: must be a standard deviation >= 0'),
+    ('noise.pv_std=-1', 'noise.pv_std: must be a standard deviation >= 0'),
+    ('noise.seed=[1,2]', 'noise.seed: must be a whole number >= 0'),
+    ('duration=.inf', 'duration: must be a positive number of seconds'),
+    ('case=overshoot', 'choose a case with --case NAME'),
+])
+def test_stiction_sim_names_a_bad_setting_in_one_line(setting, words, capsys):
+    assert sim.main(['concentration_loop.yaml', '--quiet', '--set', setting]) == 2
+    _one_line(capsys, words)
+
+
+def test_a_number_yaml_reads_as_text_is_a_number_still(tmp_path):
+    # YAML reads 1e3 (no dot) as a string.
+    cfg = load_loop(config_file('concentration_loop.yaml'),
+                    overrides={'duration': '1e3', 'sample_time': '1e0'})
+    assert cfg['duration'] == 1000.0 and cfg['sample_time'] == 1.0
+
+
+def test_a_file_that_is_no_text_is_no_loop_file(tmp_path, capsys):
+    (tmp_path / 'bin.yaml').write_bytes(b'\xff\xfe\x00binary')
+    assert sim.main([str(tmp_path / 'bin.yaml'), '--quiet']) == 2
+    _one_line(capsys, 'not a loop file (not UTF-8 text)')
+
+
+def test_ctrl_c_ends_a_command_in_one_line_with_status_130(capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(sim, 'simulate_loop', interrupted)
+    assert sim.main(['concentration_loop.yaml', '--quiet']) == 130
+    _one_line(capsys, 'interrupted')
 
 
 def test_a_simulated_csv_reads_back_bit_for_bit(loop, tmp_path):
@@ -52,7 +103,7 @@ def test_stiction_study_names_a_missing_loop_file(capsys):
     with pytest.raises(SystemExit) as stop:
         study.main(['--config', 'no-such-loop.yaml', '--out', '/nonexistent-dir/study'])
     assert stop.value.code == 2
-    _one_line(capsys, '--config no-such-loop.yaml: no such file')
+    _one_line(capsys, "--config: config 'no-such-loop.yaml': no such file")
 
 
 def test_loop_checks_its_options_before_starting_a_node(capsys):
@@ -100,3 +151,11 @@ def test_report_input_fields_are_json_objects(loop, tmp_path):
                          str(tmp_path / 'r.json')]) == 0
     got = json.loads((tmp_path / 'r.json').read_text())['input']
     assert got['topics']['op'] == '/loop1/op' and isinstance(got['phases']['pv'], float)
+
+
+def test_stiction_study_takes_a_shipped_loop_files_name(tmp_path, capsys):
+    # Its help names concentration_loop.yaml as the default: the name alone is found.
+    assert study.main(['--config', 'concentration_loop.yaml', '--out', str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    figures = len(list((tmp_path / 'figures').glob('*.png')))
+    assert f'and {figures} figures' in err and figures == 7

@@ -23,6 +23,7 @@ from mcap.exceptions import McapError
 from mcap.records import (
     Channel, Chunk, ChunkIndex, McapRecord, Message, Metadata, Schema, Statistics)
 import numpy as np
+from stiction_ros.bag.files import mcap_files
 from stiction_ros.errors import BagReadError
 from stiction_ros.kernels.arrays import Bytes, Floats, Ints
 from stiction_ros.kernels.mcap_scan import gather_float64, OP_CHANNEL, OP_SCHEMA, scan_chunk
@@ -162,31 +163,6 @@ class Bag:
         raise BagReadError(f'{self.path}: {name!r} is ambiguous: {sorted(t.name for t in hits)}')
 
 
-def mcap_files(path: str | os.PathLike[str]) -> list[Path]:
-    """Return the MCAP files of a bag directory (in order) or ``[path]`` for a file."""
-    path = Path(path)
-    if not path.exists():
-        raise BagReadError(f'{path}: no such file or directory')
-    if path.is_file():
-        return [path]
-    meta = path / 'metadata.yaml'
-    if meta.is_file():
-        try:
-            info = yaml.safe_load(meta.read_text(encoding='utf-8'))['rosbag2_bagfile_information']
-            files = [path / f for f in info['relative_file_paths']]
-            # Only files inside the bag: a metadata.yaml that names ../../etc/passwd
-            # (damaged or hostile) must not make the reader open it.
-            inside = path.resolve()
-            if files and all(f.is_file() and f.resolve().is_relative_to(inside) for f in files):
-                return files
-        except (yaml.YAMLError, KeyError, TypeError):
-            pass
-    files = sorted(path.glob('*.mcap'))
-    if not files:
-        raise BagReadError(f'{path}: no .mcap file in this directory')
-    return files
-
-
 def read_bag(path: str | os.PathLike[str]) -> Bag:
     """Read every message of a bag; never raise on damage, only on unreadable input."""
     path = Path(path)
@@ -217,9 +193,11 @@ def read_bag(path: str | os.PathLike[str]) -> Bag:
                 f'{" and metadata.yaml" if path.is_dir() else ""} (the damaged file is kept).')
         stats = state.statistics.pop(file, None)
         if stats is not None and stats != state.count() - n_before:
+            complete = False
             state.warnings.append(f'{file.name}: its statistics record counts {stats} '
                                   f'messages, {state.count() - n_before} were read')
     state.finish()
+    complete = complete and not state.lost
     meta = None
     if state.metadata:
         try:
@@ -245,10 +223,13 @@ class _ReadState:
     metadata: str | None
     orphans: dict[int, Topic]
     statistics: dict[Path, int]
+    lost: int
 
     def __init__(self) -> None:
         self.schemas, self.channels, self.topics, self.warnings = {}, {}, {}, []
         self.metadata = None
+        # Records skipped as damaged: their messages are gone, so the bag is not complete.
+        self.lost = 0
         # Messages whose channel record was lost with a damaged chunk, by channel id:
         # the summary repeats every channel, so they are bound when it comes.
         self.orphans = {}
@@ -260,6 +241,7 @@ class _ReadState:
 
     def take(self, file: Path, op: int, body: bytes) -> None:
         """Parse one record found outside a chunk; a damaged one is skipped with a warning."""
+        rec = None
         try:
             rec = _READERS[op](ReadDataStream(BytesIO(body)), len(body)) if op == 0x05 \
                 else _READERS[op](ReadDataStream(BytesIO(body)))
@@ -271,7 +253,13 @@ class _ReadState:
                 self.record(file, rec)
         except _DAMAGE as err:
             what = {0x06: 'a chunk', 0x05: 'a message'}.get(op, f'a record (opcode {op:#04x})')
-            self.warnings.append(f'{file.name}: {what} is damaged ({_why(err)}); skipped')
+            if isinstance(rec, Chunk):
+                # Said by its times, so that the engineer knows which stretch is gone.
+                what += (f' (log time {rec.message_start_time * 1e-9:.3f}-'
+                         f'{rec.message_end_time * 1e-9:.3f} s)')
+            self.lost += 1
+            self.warnings.append(f'{file.name}: {what} is damaged ({_why(err)}); skipped, '
+                                 'its messages are lost')
 
     def record(self, file: Path, rec: McapRecord) -> None:
         """Take one parsed record: from outside a chunk, or a schema or channel in one."""

@@ -57,7 +57,12 @@ def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
     for log_time, publish_time, name, data in order:
         writer.write(name, data, log_time, publish_time)
     writer.close()
+    # A second repair keeps the first original too: the next free name.
     damaged = src.with_name(src.name + '.damaged')
+    k = 1
+    while damaged.exists():
+        k += 1
+        damaged = src.with_name(f'{src.name}.damaged{k}')
     os.replace(src, damaged)
     os.replace(tmp / src.name, src)
     if path.is_dir():

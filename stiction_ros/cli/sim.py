@@ -9,6 +9,7 @@ Examples::
 
 import argparse
 import math
+import os
 import sys
 
 from stiction_ros.cli.text import description, pipe_safe
@@ -24,6 +25,25 @@ def _progress(done, total):
     sys.stderr.write(f'\rsimulating: {100 * done // total:3d} %')
     if done == total:
         sys.stderr.write('\n')
+
+
+# What -o must never write CSV text into: another format's file, or the loop file itself.
+NOT_CSV = ('.mcap', '.db3', '.yaml', '.yml', '.json', '.html', '.htm')
+
+
+def _check_output(output: str, config) -> None:
+    """Refuse an output that would lose a file, or fail only after the run."""
+    from pathlib import Path
+    from stiction_ros.app.report_files import unwritable
+    out = Path(output)
+    if out.suffix.lower() in NOT_CSV:
+        raise ConfigError(f'-o {output}: the output is CSV text; name a .csv file (a bag is '
+                          'recorded by `loop --record`)')
+    if out.exists() and Path(config).exists() and out.resolve() == Path(config).resolve():
+        raise ConfigError(f'-o {output} is the loop file itself: name another file')
+    why = unwritable(out)
+    if why:
+        raise ConfigError(f'cannot write {output}: {why} (checked before the run)')
 
 
 @pipe_safe
@@ -42,9 +62,15 @@ def main(argv=None):
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         ap.error(f'--duration must be a positive number of seconds, got {args.duration:g}')
     try:
-        cfg = load_loop(resolve_config(args.config), args.case, parse_overrides(args.set))
+        config = resolve_config(args.config)
+        if args.output != '-':
+            _check_output(args.output, config)
+        cfg = load_loop(config, args.case, parse_overrides(args.set))
         show = not args.quiet and sys.stderr.isatty()
         data = simulate_loop(cfg, args.duration, _progress if show else None)
+        if args.output != '-':
+            # As the analyzer's reports do: a missing folder is made.
+            os.makedirs(os.path.dirname(args.output) or '.', exist_ok=True)
         write_csv(sys.stdout if args.output == '-' else args.output, data)
     except (ConfigError, ModelError, PlantError, SourceError) as err:
         print(f'stiction-sim: error: {err}', file=sys.stderr)

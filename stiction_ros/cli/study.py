@@ -12,11 +12,12 @@ import json
 import os
 from pathlib import Path
 import platform
+import re
 import sys
 
 from stiction_ros.cli.text import description, pipe_safe
 from stiction_ros.errors import StictionError
-from stiction_ros.resources import config_file
+from stiction_ros.sim.launch_plan import resolve_config
 from stiction_ros.study.reproduction import run_study, write_report
 
 
@@ -42,9 +43,11 @@ def main(argv=None):
     ap.add_argument('--out', default='out/study',
                     help='output directory (default: out/study; `make reproduce` uses docs)')
     args = ap.parse_args(argv)
-    config = Path(args.config) if args.config else config_file('concentration_loop.yaml')
-    if not config.is_file():
-        ap.error(f'--config {config}: no such file')
+    # A path, or the name of a shipped loop file, as stiction-sim takes it.
+    try:
+        config = Path(resolve_config(args.config or 'concentration_loop.yaml'))
+    except StictionError as err:
+        ap.error(f'--config: {err}')
     out = Path(args.out)
 
     def say(msg):
@@ -63,7 +66,9 @@ def main(argv=None):
         print(f'stiction-study: error: cannot write to {out}: {err.strerror or err}',
               file=sys.stderr)
         return 2
-    say(f'wrote {out / "REPRODUCTION.md"} and {len(results["cases"]) + 1} figures')
+    # Every part that drew one names its figure.
+    figures = len(re.findall(r"'figure': '[^']+'", repr(results)))
+    say(f'wrote {out / "REPRODUCTION.md"} and {figures} figures')
     for c in results['cases']:
         o = c['oscillation']['op']
         cyc = f"period {o['period']:.1f} s, OP amplitude {o['amplitude']:.2f} %" \

@@ -25,12 +25,13 @@ def description(doc: str | None) -> str:
 
 def pipe_safe(main: Callable[..., int]) -> Callable[..., int]:
     """
-    Wrap a command's ``main`` so that a reader that stops early ends it quietly.
+    Wrap a command's ``main`` so that a reader that stops early, or Ctrl-C, ends it quietly.
 
     ``stiction-analyze DIR | head`` closes the pipe after ten lines; the next
     write raises BrokenPipeError.  The reader has what it asked for, so the
     command exits 0 without a traceback (and without the error Python would
-    print when it flushes stdout at exit).
+    print when it flushes stdout at exit).  Ctrl-C ends it with one line and
+    status 130, as a shell reports an interrupted command.
     """
     @functools.wraps(main)
     def run(*args: object, **kwargs: object) -> int:
@@ -39,6 +40,11 @@ def pipe_safe(main: Callable[..., int]) -> Callable[..., int]:
         except BrokenPipeError:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 0
+        except KeyboardInterrupt:
+            # Ctrl-C is the user's choice, not a bug: one line and the shell's status.
+            print(f'{os.path.basename(sys.argv[0]) or "stiction"}: interrupted',
+                  file=sys.stderr)
+            return 130
     return run
 
 

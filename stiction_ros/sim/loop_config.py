@@ -10,6 +10,7 @@ key (``controller.Ti``) and suggest the nearest valid key on a typo.
 
 import copy
 import difflib
+import math
 
 from stiction_ros.errors import ConfigError
 from stiction_ros.models import MODELS
@@ -77,6 +78,9 @@ def load_loop(path, case=None, overrides=None):
             doc = yaml.safe_load(f)
     except OSError as err:
         raise ConfigError(f'{path}: {err.strerror}') from None
+    except UnicodeDecodeError:
+        raise ConfigError(f'{path}: not a loop file (not UTF-8 text); the shipped ones are in '
+                          'config/, e.g. concentration_loop.yaml') from None
     except yaml.YAMLError as err:
         raise ConfigError(f'{path}: not valid YAML: {err}') from None
     return resolve_loop(doc, case, overrides, source=str(path))
@@ -94,6 +98,10 @@ def resolve_loop(doc, case=None, overrides=None, source='loop'):
         cfg = deep_merge(cfg, cases[case])
         cfg['case'] = case
     overrides = overrides or {}
+    if 'case' in overrides:
+        # A case merges a whole section of the file; set as a key it would change nothing.
+        raise ConfigError(f'{source}: --set case=...: choose a case with --case NAME; cases: '
+                          f'{sorted(cases)}')
     for dotted, value in overrides.items():
         node = cfg
         *parents, leaf = dotted.split('.')
@@ -131,9 +139,8 @@ def validate(cfg):
     """Raise ConfigError naming the first invalid key of a merged loop description."""
     _check_keys(cfg, TOP | {'case'}, '')
     for key in ('sample_time', 'duration'):
-        v = _require(cfg, key, '')
-        if not isinstance(v, (int, float)) or not v > 0:
-            raise ConfigError(f'{key}: must be a positive number of seconds, got {v!r}')
+        cfg[key] = _number(_require(cfg, key, ''), key, 'a positive number of seconds',
+                           lambda v: v > 0)
     if cfg['duration'] < cfg['sample_time']:
         raise ConfigError('duration: shorter than one sample_time')
     plant = _require(cfg, 'plant', '')
@@ -157,8 +164,39 @@ def validate(cfg):
                           + (f"; did you mean '{hint[0]}'?" if hint else
                              f'; choose one of {sorted(MODELS)}'))
     _check_keys(valve, set(MODELS[model].PARAMS) | {'model'}, 'valve')
-    _check_keys(cfg.get('noise') or {}, NOISE, 'noise')
+    _check_noise(cfg)
     _build_each(cfg)
+
+
+def _number(v, where: str, what: str, ok) -> int | float:
+    """Return ``v`` as a finite float for which ``ok`` holds, or raise naming ``where``."""
+    # YAML reads 1e3 (no dot) as a string; it is a number all the same.
+    if isinstance(v, str):
+        try:
+            v = float(v)
+        except ValueError:
+            pass
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+            or not ok(v):
+        raise ConfigError(f'{where}: must be {what}, got {v!r}')
+    # As written where it is a number already (a params file keeps 1, not 1.0).
+    return v
+
+
+def _check_noise(cfg):
+    noise = cfg.get('noise')
+    if noise is None:
+        return
+    if not isinstance(noise, dict):
+        raise ConfigError(f'noise: expected a mapping of {sorted(NOISE)}, got {noise!r}')
+    _check_keys(noise, NOISE, 'noise')
+    for key in ('pv_std', 'mv_std'):
+        if key in noise:
+            noise[key] = _number(noise[key], f'noise.{key}', 'a standard deviation >= 0',
+                                 lambda v: v >= 0)
+    seed = noise.get('seed', 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f'noise.seed: must be a whole number >= 0, got {seed!r}')
 
 
 def _build_each(cfg):
