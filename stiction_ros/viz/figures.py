@@ -164,11 +164,10 @@ def landscape_figure(landscape, path):
     ax.plot(landscape['best'][1], landscape['best'][0], 'r+', ms=10, mew=1.2)
     ax.set_xlabel('J (%)')
     ax.set_ylabel('S (%)')
-    title = (f'{landscape["model"]}: MSE around the fit (white: 95 % region)' if not c['exact']
-             else f'{landscape["model"]}: MSE around the fit')
-    if c['exact']:
-        title += (f'\nexact fit: {c["exact"]} cell(s) at MSE 0 (to {EXACT_MSE:g} %²), '
-                  'coloured 0:\nthe 95 % region; MSE_ref: the best cell off them')
+    title = f'{landscape["model"]}: MSE around the fit'
+    title += (f'\nexact fit: {c["exact"]} cell(s) at MSE 0 (to {EXACT_MSE:g} %²), coloured '
+              '0:\nthe 95 % region; MSE_ref: the best cell off them' if c['exact']
+              else ' (white: 95 % region)')
     if c['over'].any():
         title += f'\ngrey: MSE above {c["ceiling"]:.3g} %², not computed further'
     ax.set_title(title, fontsize=10)
