@@ -24,7 +24,6 @@ import numpy as np
 
 HOUR = 3600.0
 DAY = 86400.0
-_SECOND = timedelta(seconds=1)
 _ONE_HOUR = timedelta(hours=1)
 
 
@@ -72,10 +71,10 @@ def _outage_note(before: datetime, after: datetime) -> list[str]:
     hour = before.replace(minute=0, second=0, microsecond=0) + _ONE_HOUR
     # Back: ``after`` may lie in the hour the new clock repeats, before ``hour`` on the old.
     while hour <= after + _ONE_HOUR:
-        change = _changes(hour.year).get(hour)
-        if change == 'forward' and hour + _ONE_HOUR <= after:
+        change = _changes(hour.year).get(hour, ())
+        if 'forward' in change and hour + _ONE_HOUR <= after:
             how = 'forward: it may be an hour shorter'
-        elif change == 'back':
+        elif 'back' in change:
             how = 'back: it may be an hour longer'
         else:
             hour += _ONE_HOUR
@@ -90,7 +89,7 @@ def _outage_note(before: datetime, after: datetime) -> list[str]:
 @functools.lru_cache(maxsize=8)
 def _changes(year: int) -> dict:
     """
-    Return {whole hour on the old clock: 'forward' or 'back'} of ``year``'s changes by an hour.
+    Return {whole hour on the old clock: {'forward', 'back'}} of ``year``'s changes by an hour.
 
     Read once a year from every zone whose offset changes that year, so that
     a record with thousands of short outages looks each hour up, not every zone.
@@ -110,7 +109,7 @@ def _changes(year: int) -> dict:
             old, new = offsets[d], t.astimezone(tz).utcoffset()
             local = (t + old).replace(tzinfo=None)
             if local.minute == 0 and local.year == year and abs(new - old) == _ONE_HOUR:
-                out[local] = 'forward' if new > old else 'back'
+                out.setdefault(local, set()).add('forward' if new > old else 'back')
     return out
 
 
@@ -120,15 +119,11 @@ def _boundary(before: datetime, after: datetime, shift: float) -> datetime | Non
     hour = before.replace(minute=0, second=0, microsecond=0) + _ONE_HOUR
     if shift < 0:
         # Forward: the new clock reads an hour more than the old one from the change on.
-        ok = hour + _ONE_HOUR <= after
-        changes = _goes_forward
+        ok, way = hour + _ONE_HOUR <= after, 'forward'
     else:
         # Back: ``after`` falls within the hour the new clock repeats.
-        ok = hour - _ONE_HOUR <= after < hour
-        changes = _goes_back
-    if ok and any(changes(hour, tz) for tz in _zones()):
-        return hour
-    return None
+        ok, way = hour - _ONE_HOUR <= after < hour, 'back'
+    return hour if ok and way in _changes(hour.year).get(hour, ()) else None
 
 
 @functools.lru_cache(maxsize=1)
@@ -144,38 +139,8 @@ def _zones() -> tuple:
 @functools.lru_cache(maxsize=8)
 def _seasonal_zones(year: int) -> tuple:
     """Return the zones whose offset from UTC changes within ``year``."""
+    # Twice a month: a change for a month of the year (Morocco's, in Ramadan) counts too.
     def offsets(tz) -> set:
-        return {datetime(year, month, 15, tzinfo=tz).utcoffset() for month in (1, 4, 7, 10)}
+        return {datetime(year, month, day, tzinfo=tz).utcoffset()
+                for month in range(1, 13) for day in (1, 15)}
     return tuple(tz for tz in _zones() if len(offsets(tz)) > 1)
-
-
-def _exists(t: datetime, tz) -> bool:
-    """Return whether the local time ``t`` is shown by the clocks of ``tz``."""
-    back = t.replace(tzinfo=tz).astimezone(timezone.utc).astimezone(tz)
-    return back.replace(tzinfo=None) == t
-
-
-def _twice(t: datetime, tz) -> bool:
-    """Return whether the clocks of ``tz`` show the local time ``t`` twice."""
-    return t.replace(tzinfo=tz, fold=0).utcoffset() != t.replace(tzinfo=tz, fold=1).utcoffset()
-
-
-def _goes_forward(hour: datetime, tz) -> bool:
-    """Return whether ``tz`` skips the hour from ``hour`` on, by one hour."""
-    if not (_exists(hour - _SECOND, tz) and not _exists(hour, tz)
-            and not _exists(hour + _ONE_HOUR - _SECOND, tz) and _exists(hour + _ONE_HOUR, tz)):
-        return False
-    gained = (hour + _ONE_HOUR).replace(tzinfo=tz).utcoffset() - \
-        (hour - _SECOND).replace(tzinfo=tz).utcoffset()
-    return gained == _ONE_HOUR
-
-
-def _goes_back(hour: datetime, tz) -> bool:
-    """Return whether ``tz`` repeats the hour before ``hour`` (on its old clock), by one hour."""
-    first = hour - _ONE_HOUR
-    if not (_twice(first, tz) and not _twice(first - _SECOND, tz)
-            and _twice(hour - _SECOND, tz) and not _twice(hour, tz)):
-        return False
-    lost = first.replace(tzinfo=tz, fold=0).utcoffset() - \
-        first.replace(tzinfo=tz, fold=1).utcoffset()
-    return lost == _ONE_HOUR
