@@ -63,6 +63,7 @@ def test_stiction_sim_writes_csv_only_and_never_over_its_loop_file(tmp_path, cap
     ('noise.seed=[1,2]', 'noise.seed: must be a whole number >= 0'),
     ('duration=.inf', 'duration: must be a positive number of seconds'),
     ('case=overshoot', 'choose a case with --case NAME'),
+    ('plant.mv0=120', 'plant.mv0: must be a valve position within its travel, 0-100 %'),
 ])
 def test_stiction_sim_names_a_bad_setting_in_one_line(setting, words, capsys):
     assert sim.main(['concentration_loop.yaml', '--quiet', '--set', setting]) == 2

@@ -40,7 +40,8 @@ class PlantNode(SampledNode):
                   + fixed, fixed=True,
                   constraint='a list of finite numbers, at least as long as num'),
             Param('delay', 10.0, 'Dead time, s.' + fixed, 0.0, 1e6, fixed=True),
-            Param('mv0', 50.0, 'MV at the operating point, %.' + fixed, -1e6, 1e6, fixed=True),
+            Param('mv0', 50.0, 'MV at the operating point, % of valve travel.' + fixed,
+                  0.0, 100.0, fixed=True),
             Param('pv0', 0.0, 'PV at the operating point.' + fixed, -1e12, 1e12, fixed=True),
             Param('disturbance_steps', [], 'Load steps added to PV from their time on, as '
                   '[time_s, size] pairs in one flat list; []: none.' + fixed, fixed=True,

@@ -147,6 +147,12 @@ def validate(cfg):
     _check_keys(plant, PLANT, 'plant')
     _require(plant, 'num', 'plant')
     _require(plant, 'den', 'plant')
+    if 'mv0' in plant:
+        # The valve starts at rest there; outside its travel it would start clipped at a
+        # stop, and the plant's equilibrium would be one the valve can never reach.
+        plant['mv0'] = _number(plant['mv0'], 'plant.mv0',
+                               'a valve position within its travel, 0-100 %',
+                               lambda v: 0 <= v <= 100)
     ctl = _require(cfg, 'controller', '')
     _check_keys(ctl, CONTROLLER, 'controller')
     mode = ctl.get('mode', 'closed_loop')
