@@ -6,6 +6,9 @@ while the valve is stuck: ``c = u_r + u(k) - u(k-1)``.  The valve moves when
 ``|c| > fs`` and then sits ``fd`` behind the input, ``y = u - sign(c) fd``,
 with ``u_r = sign(c) fd`` left over.  ``fs = (S + J)/2`` and ``fd = (S - J)/2``
 so that S and J mean what they mean in Kano's and Choudhury's models.
+With J > S, ``fd`` is negative: the valve moves ahead of its input, the
+overshoot case of Choudhury et al. (2005) (Table 2.1's S 5, J 7), as the
+other two models do; the tests measure S and J back from a slow sine for it.
 """
 
 import math
