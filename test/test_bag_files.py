@@ -187,7 +187,7 @@ def test_a_split_bag_without_its_metadata_is_read_in_the_order_rosbag2_numbered_
     for name in ('b_10.mcap', 'b_2.mcap'):
         (bag / name).write_bytes(mcap.read_bytes())
     mcap.unlink()
-    from stiction_ros.bag.reader import mcap_files
+    from stiction_ros.bag.files import mcap_files
     assert [f.name for f in mcap_files(bag)] == ['b_2.mcap', 'b_10.mcap']
 
 

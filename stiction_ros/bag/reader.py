@@ -23,7 +23,7 @@ from mcap.exceptions import McapError
 from mcap.records import (
     Channel, Chunk, ChunkIndex, McapRecord, Message, Metadata, Schema, Statistics)
 import numpy as np
-from stiction_ros.bag.files import mcap_files
+from stiction_ros.bag.files import bag_files
 from stiction_ros.errors import BagReadError
 from stiction_ros.kernels.arrays import Bytes, Floats, Ints
 from stiction_ros.kernels.mcap_scan import gather_float64, OP_CHANNEL, OP_SCHEMA, scan_chunk
@@ -167,8 +167,10 @@ def read_bag(path: str | os.PathLike[str]) -> Bag:
     """Read every message of a bag; never raise on damage, only on unreadable input."""
     path = Path(path)
     state = _ReadState()
-    complete = True
-    for file in mcap_files(path):
+    found = bag_files(path)
+    state.warnings.extend(found.notes)
+    complete = not found.missing
+    for file in found.files:
         n_before = state.count()
         try:
             with open(file, 'rb') as f:

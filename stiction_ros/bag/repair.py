@@ -13,7 +13,8 @@ import os
 from pathlib import Path
 import shutil
 
-from stiction_ros.bag.reader import BagReadError, mcap_files, read_bag
+from stiction_ros.bag.files import bag_files
+from stiction_ros.bag.reader import BagReadError, read_bag
 from stiction_ros.bag.writer import BagWriter
 import yaml
 
@@ -25,18 +26,22 @@ def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
     A bag directory gets its ``metadata.yaml`` rebuilt too; a bare file has none.
     """
     path = Path(path)
+    if not path.exists():
+        raise BagReadError(f'{path}: no such file or directory')
+    notes: list[str] = []
     if path.is_file() and path.suffix.lower() == '.mcap':
         folder, files = path.parent, [path]
         tmp = folder / f'.repair-{path.name}'
     elif path.is_dir():
-        folder, files = path, mcap_files(path)
+        found = bag_files(path)
+        folder, files, notes = path, found.files, found.notes
         tmp = path / '.repair'
     else:
         raise BagReadError(f'{path}: repair works on a bag directory or an .mcap file')
     if len(files) != 1:
         raise BagReadError(f'{path}: repair handles one .mcap file per bag, found {len(files)}')
     bag = read_bag(path)
-    if bag.complete and (path.is_file() or (path / 'metadata.yaml').is_file()):
+    if bag.complete and not notes and (path.is_file() or (path / 'metadata.yaml').is_file()):
         return f'{path}: complete, {sum(t.count for t in bag.topics.values())} messages; ' \
                'nothing to repair'
     src = files[0]
