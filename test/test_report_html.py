@@ -293,6 +293,15 @@ def test_a_loop_without_a_cycle_shows_no_measured_zeros():
     assert 'amplitude' not in html and 'cycles in the record' not in html
 
 
+def test_an_irregular_candidate_period_is_not_shown_as_the_loops_cycle():
+    from stiction_ros.viz.report_html import _oscillation
+    html = '\n'.join(_oscillation({'oscillating': False, 'period_s': 412.0, 'amplitude': 0.3,
+                                   'regularity': 0.4, 'n_cycles': 21.0,
+                                   'reason': 'regularity 0.40 < 1'}))
+    assert '<td>candidate period</td>' in html and 'not a cycle of the loop' in html
+    assert '<td>period</td>' not in html and '<td>candidate cycles in the record</td>' in html
+
+
 def test_the_trends_mark_where_the_detectors_evidence_points(pages, tmp_path):
     from stiction_ros.viz.figures import detector_marks, trends_panels
     csv_path = tmp_path / 'no_mv.csv'

@@ -132,9 +132,13 @@ def _oscillation(osc: dict) -> list:
         # No cycle found: an amplitude or a count of 0 would read as measured.
         rows.append(['why', clean(osc.get('reason', '')), ''])
         return ['<h2>Oscillation</h2>', table(['quantity', 'value', 'meaning'], rows)]
+    # A period measured where no regular cycle was found belongs to a candidate that
+    # failed the test (the 'why' row says which); it must not read as the loop's cycle.
+    cand = '' if osc.get('oscillating') else 'candidate '
     if osc.get('period_s') is not None:
-        rows.append(['period', num(osc['period_s'], unit='s'),
-                     'from the zero crossings of its autocorrelation'])
+        rows.append([f'{cand}period', num(osc['period_s'], unit='s'),
+                     'from the zero crossings of its autocorrelation'
+                     + ('; not a cycle of the loop: see why' if cand else '')])
     if osc.get('amplitude') is not None:
         rows.append(['amplitude', num(osc['amplitude'], unit=PV_UNITS),
                      'of the fundamental sinusoid of SP - PV'])
@@ -142,7 +146,8 @@ def _oscillation(osc: dict) -> list:
         rows.append(['regularity', num(osc['regularity'], 3),
                      'mean period / (3 x its standard deviation); regular above 1'])
     if osc.get('n_cycles') is not None:
-        rows.append(['cycles in the record', num(osc['n_cycles'], 3), 'record length / period'])
+        rows.append([f'{cand}cycles in the record', num(osc['n_cycles'], 3),
+                     'record length / period'])
     rows.append(['why', clean(osc.get('reason', '')), ''])
     return ['<h2>Oscillation</h2>', table(['quantity', 'value', 'meaning'], rows)]
 
