@@ -164,3 +164,19 @@ def test_other_paths_a_report_cannot_take_are_refused_before_reading(csv, tmp_pa
     with pytest.raises(InputError, match=why):
         AnalyzeOptions(str(csv), **{('json_path' if argv[0] == '--json' else 'html_path'):
                                     argv[1]})
+
+
+def test_a_report_that_replaces_another_recordings_says_whose(csv, tmp_path, capsys):
+    second = tmp_path / 'second.csv'
+    shutil.copy(csv, second)
+    json_path, html_path = tmp_path / 'r.json', tmp_path / 'r.html'
+    assert main([str(csv), '--json', str(json_path), '--html', str(html_path)]) == 0
+    assert 'held the report of' not in capsys.readouterr().err
+    # The same recording again: its own report, replaced without a note.
+    assert main([str(csv), '--json', str(json_path)]) == 0
+    assert 'held the report of' not in capsys.readouterr().err
+    assert main([str(second), '--json', str(json_path), '--html', str(html_path)]) == 0
+    out = ' '.join(capsys.readouterr().err.split())   # long lines are wrapped
+    assert f'note: {json_path} held the report of {csv}; it is replaced' in out
+    assert f'note: {html_path} held the report of {csv.resolve()}; it is replaced' in out
+    assert json.loads(json_path.read_text())['input']['path'] == str(second)

@@ -350,7 +350,11 @@ def analyze_file(options: AnalyzeOptions, say: Say = print_nothing) -> Analysis:
     if options.explain:
         run_explain(analysis, options, say)
     report['elapsed_s'] = round(time.perf_counter() - t0, 3)
-    from stiction_ros.app.report_files import write_html, write_json
+    from stiction_ros.app.report_files import earlier_input, write_html, write_json
+    for target in (options.json_path, options.html_path):
+        other = target and earlier_input(target, options.input)
+        if other:
+            say(f'note: {target} held the report of {other}; it is replaced')
     if options.json_path:
         with _writing('JSON report (--json)', options.json_path):
             write_json(options.json_path, report)

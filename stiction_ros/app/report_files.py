@@ -7,8 +7,11 @@ so writing a report chooses no matplotlib backend for the caller.
 
 from __future__ import annotations
 
+import html
+import json
 import os
 from pathlib import Path
+import re
 from typing import Callable, TYPE_CHECKING
 
 from stiction_ros.app.report_text import to_json_text
@@ -50,6 +53,34 @@ def unwritable(path: str | Path) -> str | None:
         if not os.access(folder, os.W_OK | os.X_OK):
             return f'the folder {folder} is read-only'
     return None
+
+
+def earlier_input(path: str | Path, source: str | Path) -> str | None:
+    """
+    Return the recording whose report ``path`` holds when it is not ``source``, else None.
+
+    Read from an earlier JSON report's ``input.path`` or an earlier page's mark
+    (:data:`stiction_ros.viz.report_html.INPUT_META`); a file that is neither
+    is not a report of ours and gives None, as a missing one does.
+    """
+    p = Path(path)
+    if not p.is_file():
+        return None
+    try:
+        with open(p, encoding='utf-8') as f:
+            head = f.read(4096) if p.suffix.lower() in ('.html', '.htm') else f.read()
+        if p.suffix.lower() in ('.html', '.htm'):
+            found = re.search(r'<meta name="stiction-ros-input" content="([^"]*)">', head)
+            other = html.unescape(found.group(1)) if found else None
+        else:
+            other = (json.loads(head).get('input') or {}).get('path')
+    except (OSError, ValueError, AttributeError):
+        return None
+    if not isinstance(other, str) or not other:
+        return None
+    same = Path(other).name == Path(source).name or \
+        Path(other).resolve() == Path(source).resolve()
+    return None if same else other
 
 
 def write_text(path: str | Path, text: str) -> None:

@@ -247,11 +247,18 @@ def _provenance(report: dict) -> str:
             f'{detector}.</p>')
 
 
+INPUT_META = 'stiction-ros-input'
+
+
 def render(report: dict, figures: list) -> str:
     """Return the HTML text of ``report`` (the JSON dict) with the PNG ``figures`` embedded."""
     st = report.get('stiction', {})
     name = report.get('name') or report['input'].get('path')
-    parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>stiction report: '
+    source = report['input'].get('path')
+    # Which recording the page is of, for a later run that would write over it.
+    mark = (f'<meta name="{INPUT_META}" content="{e(Path(source).resolve())}">'
+            if source else '')
+    parts = [f'<!DOCTYPE html><html><head><meta charset="utf-8">{mark}<title>stiction report: '
              f'{e(name)}</title><style>{STYLE}</style></head><body>',
              f'<h1>Valve stiction report: {e(report.get("name") or "")}</h1>',
              f'<p>Input: <code>{e(report["input"].get("path"))}</code> '
