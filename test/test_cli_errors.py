@@ -77,6 +77,11 @@ def test_a_number_yaml_reads_as_text_is_a_number_still(tmp_path):
     assert cfg['duration'] == 1000.0 and cfg['sample_time'] == 1.0
 
 
+def test_a_folder_given_as_the_loop_file_is_named_a_folder(tmp_path, capsys):
+    assert sim.main([str(tmp_path), '--quiet']) == 2
+    _one_line(capsys, 'a folder, not a loop file')
+
+
 def test_a_file_that_is_no_text_is_no_loop_file(tmp_path, capsys):
     (tmp_path / 'bin.yaml').write_bytes(b'\xff\xfe\x00binary')
     assert sim.main([str(tmp_path / 'bin.yaml'), '--quiet']) == 2

@@ -38,6 +38,8 @@ def resolve_config(name: str) -> Path:
     if path.parent == Path('.') and shipped.is_file():
         return shipped
     names = sorted(p.name for p in config_dir().glob('*.yaml'))
+    if path.is_dir():
+        raise ConfigError(f'config {name!r}: a folder, not a loop file; shipped: {names}')
     raise ConfigError(f'config {name!r}: no such file, and not a shipped loop file; '
                       f'shipped: {names}')
 
