@@ -1,6 +1,7 @@
 """Bad options and damaged files: one line, the documented exit status, nothing lost."""
 
 import json
+import os
 import shutil
 
 import numpy as np
@@ -103,6 +104,25 @@ def test_a_simulated_csv_reads_back_bit_for_bit(loop, tmp_path):
     back = np.genfromtxt(path, delimiter=',', names=True)
     for name in ('t', 'sp', 'op', 'mv', 'pv'):
         np.testing.assert_array_equal(back[name], loop[name])
+
+
+def test_a_csv_write_stopped_half_way_leaves_the_earlier_file_whole(tmp_path):
+    rows = 200_000                          # more than one block of rows
+    data = {c: np.linspace(0.0, 1.0, rows) for c in ('t', 'sp', 'op', 'mv', 'pv')}
+    path = tmp_path / 'loop.csv'
+    path.write_text('t,op\n0,1\n')
+    seen = []
+
+    def stop(done, total):
+        seen.append((done, total))
+        raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        write_csv(path, data, progress=stop)
+    assert seen == [(65536, rows)]
+    assert path.read_text() == 't,op\n0,1\n' and os.listdir(tmp_path) == ['loop.csv']
+    # Written through, its progress ends at every row, and the rows read back.
+    write_csv(path, data, progress=lambda done, total: seen.append((done, total)))
+    assert seen[-1] == (rows, rows) and len(path.read_text().splitlines()) == rows + 1
 
 
 def test_stiction_study_names_a_missing_loop_file(capsys):

@@ -21,10 +21,12 @@ from stiction_ros.sim.plant import PlantError
 from stiction_ros.sim.sources import SourceError
 
 
-def _progress(done, total):
-    sys.stderr.write(f'\rsimulating: {100 * done // total:3d} %')
-    if done == total:
-        sys.stderr.write('\n')
+def _progress(what):
+    def show(done, total):
+        sys.stderr.write(f'\r{what}: {100 * done // total:3d} %')
+        if done == total:
+            sys.stderr.write('\n')
+    return show
 
 
 # What -o must never write CSV text into: another format's file, or the loop file itself.
@@ -67,11 +69,13 @@ def main(argv=None):
             _check_output(args.output, config)
         cfg = load_loop(config, args.case, parse_overrides(args.set))
         show = not args.quiet and sys.stderr.isatty()
-        data = simulate_loop(cfg, args.duration, _progress if show else None)
+        data = simulate_loop(cfg, args.duration, _progress('simulating') if show else None)
         if args.output != '-':
             # As the analyzer's reports do: a missing folder is made.
             os.makedirs(os.path.dirname(args.output) or '.', exist_ok=True)
-        write_csv(sys.stdout if args.output == '-' else args.output, data)
+        write_csv(sys.stdout if args.output == '-' else args.output, data,
+                  progress=_progress(f'writing {args.output}') if show and args.output != '-'
+                  else None)
     except (ConfigError, ModelError, PlantError, SourceError) as err:
         print(f'stiction-sim: error: {err}', file=sys.stderr)
         return 2

@@ -6,7 +6,9 @@ valve, then hold MV over the sample while the plant advances.  The live ROS
 loop runs the same objects in three nodes.
 """
 
+import os
 from os import PathLike
+import tempfile
 from typing import Any, Callable, Mapping, Sequence, TextIO
 
 import numpy as np
@@ -141,19 +143,44 @@ def run_compiled(out: dict[str, Floats], valve: ValveModel, plant: TransferFunct
 
 
 def write_csv(path: str | PathLike[str] | TextIO, data: Mapping[str, Floats],
-              columns: Sequence[str] = COLUMNS) -> None:
+              columns: Sequence[str] = COLUMNS, progress: Progress | None = None) -> None:
     """
     Write the named columns of a simulation result to CSV with a header row.
 
     Each value is written in the fewest digits that read back as the same
     float: an exact model must still fit with MSE 0, and a slip that falls
     on a stick band's edge must not move a sample when the file is read.
+    The text is made a block of rows at a time, so that a long run needs no
+    more memory for it than its arrays; a file is written beside its name and
+    renamed at the end, so that a failed or interrupted write leaves no half
+    file (and an earlier one whole).  ``progress(rows written, rows)``.
     """
-    arr = np.column_stack([np.asarray(data[c], dtype=np.float64) for c in columns])
-    lines = [','.join(columns)] + [','.join(map(repr, row)) for row in arr.tolist()]
-    text = '\n'.join(lines) + '\n'
+    cols = [np.asarray(data[c], dtype=np.float64) for c in columns]
+    n = len(cols[0]) if cols else 0
     if hasattr(path, 'write'):
-        path.write(text)
-    else:
-        with open(path, 'w', encoding='utf-8') as f:
-            f.write(text)
+        _write_rows(path, columns, cols, n, progress)
+        return
+    target = os.fspath(path)
+    fd, tmp = tempfile.mkstemp(prefix=f'.{os.path.basename(target)}.',
+                               dir=os.path.dirname(target) or '.')
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            _write_rows(f, columns, cols, n, progress)
+        # mkstemp makes the file private; a CSV is as readable as any file the user writes.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, target)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def _write_rows(f: TextIO, columns: Sequence[str], cols: list[np.ndarray], n: int,
+                progress: Progress | None, block: int = 65536) -> None:
+    f.write(','.join(columns) + '\n')
+    for start in range(0, n, block):
+        rows = np.column_stack([c[start:start + block] for c in cols]).tolist()
+        f.write(''.join(','.join(map(repr, row)) + '\n' for row in rows))
+        if progress is not None:
+            progress(min(start + block, n), n)
