@@ -10,7 +10,7 @@ recording that fails is one row with its error, never the end of the audit.
 
 from __future__ import annotations
 
-from concurrent.futures import as_completed, ProcessPoolExecutor
+from concurrent.futures import as_completed
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 import glob
@@ -19,7 +19,7 @@ from pathlib import Path
 import re
 import time
 
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import worker_pool
 from stiction_ros.analysis.oscillation import period_sanity
 from stiction_ros.analysis.plantwide import CycleMember, PlantWide, shared_cycles
 from stiction_ros.analysis.readers.sniff import AS_CSV
@@ -285,8 +285,7 @@ def _results(paths, options, jobs, scheduler, out_dir, root, pages=False):
             for future in dask_completed(futures):
                 yield future.result()
     elif jobs > 1 and len(paths) > 1:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(paths)),
-                                 initializer=one_blas_thread) as pool:
+        with worker_pool(min(jobs, len(paths))) as pool:
             futures = [pool.submit(analyze_one, p, options, out_dir, root, names[str(p)], pages)
                        for p in paths]
             for future in as_completed(futures):

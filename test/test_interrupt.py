@@ -1,0 +1,49 @@
+"""Ctrl-C at a terminal, sent as a terminal sends it: to the whole process group."""
+
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
+
+RECORDINGS = 60
+
+
+def test_ctrl_c_stops_a_folders_run_on_two_workers_without_finishing_the_queue(tmp_path):
+    folder = tmp_path / 'loops'
+    folder.mkdir()
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'undershoot')
+    write_csv(folder / 'loop_0.csv', simulate_loop(cfg, duration=3000.0))
+    for k in range(1, RECORDINGS):
+        shutil.copy(folder / 'loop_0.csv', folder / f'loop_{k}.csv')
+    out = tmp_path / 'reports'
+    cli = Path(sys.executable).with_name('stiction-analyze')
+    err = tmp_path / 'err.txt'
+    with open(err, 'wb') as errf:
+        proc = subprocess.Popen([str(cli), str(folder), '--jobs', '2', '--out-dir', str(out)],
+                                stdout=subprocess.DEVNULL, stderr=errf, start_new_session=True)
+        try:
+            # Under way: the first report is written (imports and workers long started).
+            give_up = time.monotonic() + 120
+            while not (out.is_dir() and any(out.glob('*.json'))):
+                assert proc.poll() is None and time.monotonic() < give_up, err.read_text()
+                time.sleep(0.01)
+            os.killpg(proc.pid, signal.SIGINT)
+            # A hang guard, not a timing claim: the queue left would take much longer.
+            rc = proc.wait(timeout=60)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+    text = err.read_text()
+    assert rc == 130 and text.strip().splitlines()[-1] == 'stiction-analyze: interrupted'
+    assert 'Traceback' not in text
+    # The queued recordings were dropped, not worked through; no worker is left behind.
+    assert len(list(out.glob('*.json'))) < RECORDINGS // 2
+    left = subprocess.run(['pgrep', '-s', str(proc.pid)], capture_output=True, text=True)
+    assert left.stdout.split() == []
