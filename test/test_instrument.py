@@ -131,6 +131,10 @@ def test_a_sticky_valve_read_late_is_stiction_and_dead_time(loop):
     assert abs(chain['dead_time_s'] - 2.0) <= 0.5
     assert abs(chain['S'] - truth['valve']['S']) < 0.3
     _never_worse_than_frictionless(r)
+    # The answer is the dead time wherever it is read (JSON, page, figure), not the
+    # friction search's 'nothing is missing' beside a list that names it.
+    assert m['effect'] == m['effects'][0]['id'] and 'Nothing is missing' not in m['explanation']
+    assert m['explanation'].startswith(m['effects'][0]['sentence'])
 
 
 def test_play_without_stick_is_backlash_not_stiction(loop):

@@ -218,6 +218,7 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
                                                  reps, seed, say, jobs, full)
         if _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, tests):
             winner = sticky
+            _name_what_was_found(report['mismatch'])
         else:
             report = None
             if tests['backlash_vs_frictionless']['wins'] and backlash.S >= PLAUSIBLE['offset']:
@@ -259,6 +260,16 @@ def _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, t
     tests['stiction_vs_backlash'] = max((j_chain, j_final), key=lambda j: (j['wins'], j['lr']))
     tests['final_vs_frictionless'] = final_test(rec, frictionless, arrays['mv_explained'])
     return tests['stiction_vs_backlash']['wins'] and tests['final_vs_frictionless']['wins']
+
+
+def _name_what_was_found(m):
+    # The friction physics was searched after the dead time or calibration the valve
+    # needs was put in; that search's 'none' means no friction effect is missing, not
+    # that nothing is: the answer names what was found, as the frictionless one does.
+    m['friction_effect'] = m['effect']
+    if m['effect'] in ('none', 'unexplained') and m['effects']:
+        m['effect'] = m['effects'][0]['id']
+        m['explanation'] = ' '.join(e['sentence'] for e in m['effects'])
 
 
 def _chain_answer(t, rec, winner, n_fit, holdout):
