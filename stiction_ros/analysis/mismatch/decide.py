@@ -218,7 +218,7 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
                                                  reps, seed, say, jobs, full)
         if _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, tests):
             winner = sticky
-            _name_what_was_found(report['mismatch'])
+            _name_what_was_found(report['mismatch'], report.get('chain_kept'))
         else:
             report = None
             if tests['backlash_vs_frictionless']['wins'] and backlash.S >= PLAUSIBLE['offset']:
@@ -262,14 +262,17 @@ def _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, t
     return tests['stiction_vs_backlash']['wins'] and tests['final_vs_frictionless']['wins']
 
 
-def _name_what_was_found(m):
+def _name_what_was_found(m, kept):
     # The friction physics was searched after the dead time or calibration the valve
     # needs was put in; that search's 'none' means no friction effect is missing, not
-    # that nothing is: the answer names what was found, as the frictionless one does.
+    # that nothing is: the answer names what was found, as the frictionless one does,
+    # with the confidence of the stages kept (1 - threshold/LR, as a friction effect's).
     m['friction_effect'] = m['effect']
     if m['effect'] in ('none', 'unexplained') and m['effects']:
         m['effect'] = m['effects'][0]['id']
         m['explanation'] = ' '.join(e['sentence'] for e in m['effects'])
+        if kept and kept.get('score'):
+            m['confidence'] = round(min(max(1.0 - 1.0 / kept['score'], 0.0), 1.0), 3)
 
 
 def _chain_answer(t, rec, winner, n_fit, holdout):

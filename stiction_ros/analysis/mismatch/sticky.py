@@ -88,6 +88,7 @@ def explain_sticky(t, op, mv, segments, sample_time, holdout, reps, seed, say, j
                                 seed=seed, progress=say, jobs=jobs,
                                 calibrated=(worst, m['bootstrap']['acf1']))
     report['chain_candidates'] = _summaries(cands, sample_time)
+    report['chain_kept'] = {'stages': list(best['stages']), 'score': best['score']}
     _back_to_reading(report, arrays, op, mv, p, plain, plain_arrays)
     model = report['mismatch']['model']
     model['name'] = '+'.join(['kano'] + [STAGE_NAMES[s] for s in chain.free
