@@ -19,6 +19,7 @@ from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
+from stiction_ros.analysis.measures.still import still_valve
 from stiction_ros.analysis.oscillation import detect_oscillation, MIN_PERIOD_SAMPLES
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine
@@ -401,6 +402,12 @@ def analyze(record: Record, options: Options | None = None,
         sticks = bool(report['stiction']['detected'])
         caution = (sampling_caution(held, osc, record.sample_time, sticks) if win is not None
                    else valve_sampling_caution(record, sticks))
+        still = still_valve(record.signals['op'], record.signals['mv'],
+                            record.valve_segments(min_samples=2))
+        if still is not None:
+            # The fit's range is as narrow as the noise, but bounds S from below only.
+            lower = f'{still.sentence()}; S >= {min(f.S for f in fitted):.2f} %'
+            caution = f'{lower}; {caution}' if caution else lower
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes

@@ -394,6 +394,15 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
                 'positioner feedback (or a flow right after the valve) and run --explain '
                 'again; the stiction verdict above is what OP and PV can say.')}
         return
+    from stiction_ros.analysis.measures.still import still_valve
+    still = still_valve(rec.signals['op'], rec.signals['mv'], rec.valve_segments(min_samples=2))
+    if still is not None:
+        # A fit to a valve that never moved reads MV's noise: a calibration of gain 0 or a
+        # dead time would be named with full confidence.
+        analysis.report['mismatch'] = {
+            'effect': 'cannot_tell', 'effects': [], 'friction': None, 'reason': 'mv_still',
+            'explanation': f'Cannot explain a mismatch: {still.sentence()}.'}
+        return
     from stiction_ros.analysis.mismatch.decide import explain_record
     jobs = options.jobs if options.jobs is not None else default_jobs()
     sections, arrays = explain_record(rec.t, rec.signals['op'], rec.signals['mv'],

@@ -1,0 +1,48 @@
+"""A valve that never breaks away: its size is bounded below only, and --explain cannot tell."""
+
+import json
+
+import numpy as np
+
+from stiction_ros.analysis.measures.still import still_valve
+from stiction_ros.cli.analyze import main
+from stiction_ros.models import Kano
+from stiction_ros.sim.closed_loop import write_csv
+
+
+def _record(amplitude, S=4.0, J=1.0, n=3601, seed=3):
+    # OP wanders slowly around 50 %; Kano's valve, put at rest there, follows if it can.
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    op = 50.0 + amplitude * np.sin(2 * np.pi * t / 600.0) + 0.02 * rng.standard_normal(n)
+    valve = Kano(S=S, J=J)
+    valve.reset(y0=50.0)
+    mv = valve.simulate(op) + 0.1 * rng.standard_normal(n)
+    return {'t': t, 'sp': np.zeros(n), 'pv': op - 50.0, 'op': op, 'mv': mv}
+
+
+def test_a_valve_that_never_breaks_away_is_still_and_one_that_slips_is_not():
+    stuck = _record(1.0)                  # OP travels 2 %, less than S = 4 %
+    found = still_valve(stuck['op'], stuck['mv'], [(0, len(stuck['op']))])
+    assert found is not None and found.op_spread > 1.9 and found.mv_spread < 0.6
+    assert abs(found.noise - 0.1) < 0.02
+    moving = _record(6.0)                 # OP travels 12 %: it slips every half cycle
+    assert still_valve(moving['op'], moving['mv'], [(0, len(moving['op']))]) is None
+    # A healthy valve follows OP, however little OP moves.
+    quiet = _record(0.5, S=0.0, J=0.0)
+    assert still_valve(quiet['op'], quiet['mv'], [(0, len(quiet['op']))]) is None
+
+
+def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never_moved(
+        tmp_path, capsys):
+    path = tmp_path / 'stuck.csv'
+    write_csv(path, _record(1.0))
+    out = tmp_path / 'r.json'
+    assert main([str(path), '--explain', '--quiet', '--json', str(out)]) == 0
+    report = json.loads(out.read_text())
+    m = report['mismatch']
+    assert m['effect'] == 'cannot_tell' and m['reason'] == 'mv_still' and m['effects'] == []
+    assert 'did not break away' in m['explanation']
+    caution = report['stiction']['size_caution']
+    assert 'bounded below only' in caution and 'S >= ' in caution
+    assert 'mismatch: cannot tell' in capsys.readouterr().out
