@@ -197,3 +197,26 @@ def test_a_valve_on_its_travel_stop_is_a_travel_limit(loop):
     m = _explain(d, mv)['mismatch']
     assert m['friction'] is False and [e['id'] for e in m['effects']] == ['travel_limits']
     assert abs(m['effects'][0]['size'] - stop) < 0.1
+
+
+def test_a_reading_ahead_of_op_is_a_clock_skew_not_a_calibration(loop):
+    # No valve moves before its command: a reading 2 samples early is the clocks' doing.
+    d, _ = loop
+    whole = [(0, len(d['op']))]
+    r = _explain(d, ins.shift(d['op'], -2.0, whole) + _noise(len(d['op']), 0.1))
+    m = r['mismatch']
+    assert m['friction'] is False and [e['id'] for e in m['effects']] == ['clock_skew']
+    assert m['effect'] == 'clock_skew' and abs(r['clock_skew']['samples'] - 2.0) < 0.1
+    # The plain model, without the lead, is far worse held out than the realigned one.
+    assert m['mse_holdout'] < 0.1 * r['baseline']['mse_holdout']
+
+
+def test_a_sticky_valve_read_ahead_of_op_is_stiction_and_a_clock_skew(loop):
+    d, truth = loop
+    whole = [(0, len(d['op']))]
+    r = _explain(d, ins.shift(d['mv_true'], -2.0, whole) + _noise(len(d['op']), 0.1))
+    m = r['mismatch']
+    assert m['friction'] is True and m['effects'][0]['id'] == 'clock_skew'
+    assert abs(m['effects'][0]['size'] - 2.0) < 0.1
+    assert 'positioner_calibration' not in {e['id'] for e in m['effects']}
+    assert abs(r['chains']['stiction']['S'] - truth['valve']['S']) < 0.3

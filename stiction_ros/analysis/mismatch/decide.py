@@ -30,7 +30,8 @@ from stiction_ros.analysis.mismatch import explain as friction_explain
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import sentences
 from stiction_ros.analysis.mismatch.frictionless import fit_frictionless, stage_ok
-from stiction_ros.analysis.mismatch.frictionless_report import without_friction
+from stiction_ros.analysis.mismatch.frictionless_report import plain_baseline, without_friction
+from stiction_ros.analysis.mismatch.lead import find_lead, lead_effect
 from stiction_ros.analysis.mismatch.stats import acf1, chi2_999, earns, heldout_test, \
     lr_eff, P_HELDOUT
 from stiction_ros.analysis.mismatch.sticky import explain_sticky
@@ -202,10 +203,18 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
     say('fitting the best valve without friction (dead time, lags, offset, gain, rate '
         'limit, travel stops)')
     full = fit_frictionless(op, mv, fit_segs, sample_time)
-    frictionless = select_stages(rec, full)
     say('fitting backlash and stiction with dead time, lag and calibration')
-    backlash = ins.fit_friction(op, mv, fit_segs, sample_time, 'backlash', hint=full)
     sticky = ins.fit_friction(op, mv, fit_segs, sample_time, 'stiction', hint=full)
+    lead = find_lead(rec, full, sticky, _test)
+    op_recorded = op
+    if lead is not None:
+        say(f'MV runs {lead["s"]:.3g} s ahead of OP: reading OP that much earlier')
+        op = ins.shift(op, -lead['samples'], segments)
+        rec.op = op
+        full = fit_frictionless(op, mv, fit_segs, sample_time)
+        sticky = ins.fit_friction(op, mv, fit_segs, sample_time, 'stiction', hint=full)
+    frictionless = select_stages(rec, full)
+    backlash = ins.fit_friction(op, mv, fit_segs, sample_time, 'backlash', hint=full)
     tests = {'stiction_vs_frictionless': compare(rec, frictionless, sticky),
              'backlash_vs_frictionless': compare(rec, frictionless, backlash)}
     sections = {'frictionless': chain_summary(rec, frictionless),
@@ -231,6 +240,12 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
     m = report['mismatch']
     m['friction'] = winner.friction == 'stiction'
     m['friction_kind'] = winner.friction
+    if lead is not None:
+        _put_lead_first(report, lead)
+        # The plain model is the one without timing: on OP as recorded, the lead in.
+        report['baseline'], arrays['mv_baseline'], _ = plain_baseline(
+            op_recorded, mv, segments, sample_time, n_fit)
+        report['series']['mv_baseline'] = friction_explain._json(arrays['mv_baseline'])
     f_hold = sections['frictionless']['mse_holdout']
     if m['friction'] and len(rec.hold_idx) and m['mse_holdout'] > f_hold:
         m['note'] = (f'the friction model is worse on held-out data ({m["mse_holdout"]:.4g}) '
@@ -260,6 +275,25 @@ def _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, t
     tests['stiction_vs_backlash'] = max((j_chain, j_final), key=lambda j: (j['wins'], j['lr']))
     tests['final_vs_frictionless'] = final_test(rec, frictionless, arrays['mv_explained'])
     return tests['stiction_vs_backlash']['wins'] and tests['final_vs_frictionless']['wins']
+
+
+def _put_lead_first(report, lead):
+    # Everything after was fitted to OP read ahead: the lead is the first thing found.
+    m = report['mismatch']
+    effect = lead_effect(lead)
+    m['effects'] = [effect] + m['effects']
+    test = lead['test']
+    # 1 - threshold/LR, as a stage's; beside another effect, the less sure of the two.
+    sure = round(max(0.0, 1.0 - test['threshold'] / test['lr']), 3) if test['lr'] > 0 else 0.0
+    alone = m['effect'] in ('none', 'unexplained')
+    m['confidence'] = sure if alone else min(sure, m['confidence'])
+    m['explanation'] = (effect['sentence'] if alone
+                        else f'{effect["sentence"]} {m["explanation"]}')
+    m['effect'] = m['effects'][0]['id']
+    m['model']['params']['mv_lead_s'] = lead['s']
+    report['clock_skew'] = {'mv_lead_s': lead['s'], 'samples': lead['samples'],
+                            **{k: lead['test'][k] for k in ('lr', 'threshold', 'heldout_gain',
+                                                            'heldout_p') if k in lead['test']}}
 
 
 def _name_what_was_found(m, kept):

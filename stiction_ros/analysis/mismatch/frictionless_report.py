@@ -13,11 +13,7 @@ from stiction_ros.analysis.mismatch.stats import acf1
 def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, holdout,
                      effects):
     """Return (report, arrays) of a valve explained by ``chain`` (no stiction), Kano beside."""
-    fit_segs = friction_explain.split_segments(segments, n_fit)
-    base = identify(op, mv, 'kano', segments=fit_segs, sample_time=sample_time,
-                    resolution=RESOLUTION, interval=False)
-    mv_base, rest = friction_explain.model_output(op, mv, segments, base.S, base.J,
-                                                  friction_explain.kk.plain_params())
+    baseline, mv_base, rest = plain_baseline(op, mv, segments, sample_time, n_fit)
     fit_mask, hold_mask = friction_explain.scored_masks(segments, len(op), n_fit)
     located = friction_explain.without_start(fit_mask, segments)
     residual = mv - mv_base
@@ -29,9 +25,7 @@ def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, h
                    'dead time, lag or calibration error that the data can show.')
     name = 'frictionless' if chain.friction == 'none' else 'backlash'
     report = {
-        'baseline': {'model': 'kano', 'S': base.S, 'J': base.J,
-                     'mse_fit': masked_mse(mv_base, mv, fit_mask),
-                     'mse_holdout': masked_mse(mv_base, mv, hold_mask)},
+        'baseline': baseline,
         'mismatch': {
             'effect': effect, 'effects': effects,
             'confidence': 1.0, 'explanation': explanation,
@@ -55,3 +49,16 @@ def without_friction(t, op, mv, segments, sample_time, chain, mv_chain, n_fit, h
               'mv_explained': mv_chain, 'fit_mask': fit_mask, 'hold_mask': hold_mask,
               'breakaways': locate.breakaways(t, op, mv, mv_base, rest, sample_time)}
     return report, arrays
+
+
+def plain_baseline(op, mv, segments, sample_time, n_fit):
+    """Return (section, output, resting) of the plain Kano model fitted before ``n_fit``."""
+    fit_segs = friction_explain.split_segments(segments, n_fit)
+    base = identify(op, mv, 'kano', segments=fit_segs, sample_time=sample_time,
+                    resolution=RESOLUTION, interval=False)
+    mv_base, rest = friction_explain.model_output(op, mv, segments, base.S, base.J,
+                                                  friction_explain.kk.plain_params())
+    fit_mask, hold_mask = friction_explain.scored_masks(segments, len(op), n_fit)
+    return ({'model': 'kano', 'S': base.S, 'J': base.J,
+             'mse_fit': masked_mse(mv_base, mv, fit_mask),
+             'mse_holdout': masked_mse(mv_base, mv, hold_mask)}, mv_base, rest)

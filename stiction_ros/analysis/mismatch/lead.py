@@ -1,0 +1,74 @@
+"""
+MV that runs ahead of OP: a clock's doing, never a valve's.
+
+A valve moves after its command, so a reading that follows OP *before* OP
+moves says that the two are stamped on different clocks (or OP is logged
+late).  No chain stage can model it (a dead time is at least 0), so a fit
+of the early reading reaches for whatever else lowers its error, typically
+a positioner calibration, and names it.  Here OP is read ahead by whole
+samples, doubling, while the valve without friction fitted to it beats the
+one fitted to OP as recorded on the fitted part and held out; the chain's
+own dead time then places the lead to a fraction of a sample.
+"""
+
+from typing import Any, Callable
+
+import numpy as np
+
+from stiction_ros.analysis.mismatch import instrument as ins
+from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
+
+# The longest lead looked for, in samples.
+MAX_LEAD = 16
+# A lead under this many samples is within what the fit's dead time places at all.
+MIN_LEAD = 0.5
+
+
+def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
+              test: Callable[[Any, np.ndarray, np.ndarray, int], dict]) -> dict | None:
+    """
+    Return the lead of MV over OP (``samples``, ``s``, the ``test`` that found it), or None.
+
+    ``rec`` is the record as the tests see it (``decide.Rec``); ``full`` and
+    ``sticky`` the valve without friction and with stiction fitted to OP as
+    recorded (the better on the fitted part is the one read ahead: a sticky
+    valve's misfit without friction would hide the lead); ``test(rec,
+    e_simple, e_rich, extra parameters)`` the comparison every stage passes
+    (fitted part and held out).
+    """
+    e_full, e_sticky = rec.errors(full), rec.errors(sticky)
+    f = rec.fit_idx
+    use_sticky = np.nansum(e_sticky[f] ** 2) < np.nansum(e_full[f] ** 2)
+    e0 = e_sticky if use_sticky else e_full
+    best = None
+    advance = 1
+    while advance <= MAX_LEAD:
+        op_a = ins.shift(rec.op, -float(advance), rec.segments)
+        hint = fit_frictionless(op_a, rec.mv, rec.fit_segs, rec.sample_time)
+        fit = (ins.fit_friction(op_a, rec.mv, rec.fit_segs, rec.sample_time, 'stiction',
+                                hint=hint) if use_sticky else hint)
+        e_a = rec.read(ins.chain_output(op_a, rec.mv, rec.segments, fit)) - rec.mv
+        result = test(rec, e0, e_a, 1)
+        if not result['wins']:
+            break
+        best = {'samples': advance - float(fit.params['delay']), 'test': result}
+        if fit.params['delay'] >= MIN_LEAD:
+            break           # read further ahead than MV runs: the fit put a delay back
+        advance *= 2
+    if best is None or best['samples'] < MIN_LEAD:
+        return None
+    best['samples'] = round(best['samples'], 2)
+    best['s'] = round(best['samples'] * rec.sample_time, 6)
+    return best
+
+
+def lead_effect(lead: dict) -> dict:
+    """Return the lead as a named effect of ``--explain``."""
+    s, n = lead['s'], lead['samples']
+    return {'id': 'clock_skew', 'size': s, 'unit': 's', 'uncertainty': None,
+            'sentence': (f'The position moves {s:.3g} s ({n:.3g} sample{"" if n == 1 else "s"}) '
+                         'before OP commands '
+                         'it, which no valve can: OP and MV are stamped on different clocks, '
+                         'or OP is logged late. The rest is read with OP that much earlier; '
+                         'align the two tags in the historian.'),
+            'params': {'mv_lead_s': s}}
