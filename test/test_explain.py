@@ -206,7 +206,8 @@ def test_explain_cli_report_keeps_the_contract(tmp_path, dwell_case):
     # The candidates side by side, and where the plain model misses.
     assert 'Candidates side by side' in page and 'Residual by regime' in page
     assert all(e.eid in page for e in EFFECTS)
-    assert 'located:' in proc.stdout and 'plain model: kano' in proc.stdout
+    assert ('located:' in proc.stdout
+            and 'plain model (fitted on the first 70 %): kano' in proc.stdout)
     assert (tmp_path / 'r_figures' / 'mismatch.png').stat().st_size > 20000
 
 

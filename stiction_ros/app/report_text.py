@@ -178,6 +178,14 @@ def size_text(report: dict) -> str:
         if sized:
             text += (f'; with the physics --explain found in place: S={sized[1]:.2f} % '
                      f'J={sized[2]:.2f} % ({sized[0]})')
+        m = report.get('mismatch') or {}
+        if m.get('friction') is False:
+            # Held out, no stick-slip beat the valve without it: the fit's S and J are what
+            # a friction model makes of the rest, however narrow their range.
+            text += ('; --explain finds play without a slip jump, not stick-slip'
+                     if m.get('friction_kind') == 'backlash' else
+                     '; --explain explains MV without friction: this is what a friction '
+                     'model makes of its timing or calibration, not a friction size')
         caution = st.get('size_caution')
         return f'{text}; caution: {caution}' if caution else text
     withheld = st.get('size_withheld')
@@ -217,7 +225,11 @@ def excluded_text(report: dict) -> str:
 
 def _mismatch_lines(report):
     m, b = report['mismatch'], report['baseline']
-    line = f'\nplain model: kano S={b["S"]:.3f} J={b["J"]:.3f} MSE fit {b["mse_fit"]:.4g}'
+    share = (report.get('holdout') or {}).get('share')
+    # Fitted on the part before the held-out one, so not the fits' S and J above.
+    part = f' (fitted on the first {100 * (1 - share):.0f} %)' if share else ''
+    line = (f'\nplain model{part}: kano S={b["S"]:.3f} J={b["J"]:.3f} MSE fit '
+            f'{b["mse_fit"]:.4g}')
     if m.get('regimes'):
         r = m['regimes'][0]
         line += (f'\nlocated: {r["regime"]} holds {100 * r["residual_share"]:.0f} % of the '
@@ -244,10 +256,19 @@ def _mismatch_lines(report):
                  + ": the valve's own size, with the missing physics in place")
     if m.get('note'):
         line += f'\nnote: {m["note"]}'
+    if names and m['mse_holdout'] > b['mse_holdout'] * 1.0001:
+        why = (' (its prediction is read through the steps of the reading, so it misses by '
+               'whole steps where a continuous one misses by part of a step; the steps are '
+               "found from the reading's values, not from the MSE)"
+               if 'quantisation' in names else '')
+        line += (f'\nnote: the explained model is worse held out than the plain one{why}')
     if report['stiction'].get('detected') and m.get('friction') is False:
+        found = ('play without a slip jump (backlash or a pure deadband) beats the best '
+                 'valve without friction, stick-slip does not' if
+                 m.get('friction_kind') == 'backlash' else
+                 'no friction beats the best valve without friction here')
         line += ('\nnote: the stiction verdict above comes from valve models without dead '
-                 'time or calibration; no friction beats the best valve without friction '
-                 'here')
+                 f'time or calibration; {found}')
     return line
 
 

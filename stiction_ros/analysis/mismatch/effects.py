@@ -69,8 +69,11 @@ def _samples_of(v, ctx):
 
 def _asym_sentence(q, S, J):
     a = q['asymmetry']
-    return (f'Friction is {abs(a) * 200 / (1 - abs(a)):.0f} % higher '
-            f'{"opening" if a > 0 else "closing"} than {"closing" if a > 0 else "opening"} '
+    # The model scales every friction force by 1 + a opening and 1 - a closing; said as
+    # "x % higher" (their ratio) it read as the breakaway's difference, which is smaller.
+    more, less = ('opening', 'closing') if a > 0 else ('closing', 'opening')
+    return (f'The friction forces are {1 + abs(a):.2f} times their mean {more} and '
+            f'{1 - abs(a):.2f} times {less} '
             f'(plug unbalance, gravity or packing): after a reversal the valve needs '
             f'{S + a * J:.2f} % of OP to start opening but {S - a * J:.2f} % to start closing, '
             f'and jumps {J * (1 + a):.2f} % against {J * (1 - a):.2f} %.')
