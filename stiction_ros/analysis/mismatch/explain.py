@@ -331,7 +331,9 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
             'mse_fit': masked_mse(mv_explained, mv, fit_mask),
             'mse_holdout': masked_mse(mv_explained, mv, hold_mask),
             'residual_acf1': round(acf, 4),
-            'bootstrap': {'replicates': reps, 'largest_lr': {k: round(v, 3)
+            # Reused replicates (``calibrated``) count as what they were: their acf1 list.
+            'bootstrap': {'replicates': len(acfs), 'reused': calibrated is not None,
+                          'largest_lr': {k: round(v, 3)
                                                              for k, v in worst.items()},
                           'acf1': [round(a, 4) for a in acfs], 'margin': MARGIN}},
         'candidates': sorted(candidates, key=lambda c: -c['score']),
