@@ -291,6 +291,7 @@ def _put_lead_first(report, lead):
                         else f'{effect["sentence"]} {m["explanation"]}')
     m['effect'] = m['effects'][0]['id']
     m['model']['params']['mv_lead_s'] = lead['s']
+    m['model']['name'] = f'{m["model"]["name"]}+clock_skew'
     report['clock_skew'] = {'mv_lead_s': lead['s'], 'samples': lead['samples'],
                             **{k: lead['test'][k] for k in ('lr', 'threshold', 'heldout_gain',
                                                             'heldout_p') if k in lead['test']}}
