@@ -83,3 +83,29 @@ def test_a_folder_with_metadata_and_no_mcap_file_is_an_error(tmp_path):
 def test_repair_of_a_path_that_does_not_exist_says_so(tmp_path):
     with pytest.raises(BagReadError, match='no such file or directory'):
         repair_bag(tmp_path / 'nothing')
+
+
+def test_a_hidden_copy_beside_the_file_is_not_read(tmp_path):
+    bag = write(tmp_path / 'b')
+    (bag / '._b_0.mcap').write_bytes(b'\x00\x05\x16\x07Mac OS X        ')
+    got = read_bag(bag)
+    assert got.complete and not got.warnings and got.topic('op').count == 200
+
+
+def test_a_bags_file_may_be_a_link_into_a_store(tmp_path):
+    bag = write(tmp_path / 'b')
+    store = tmp_path / 'store'
+    store.mkdir()
+    (bag / 'b_0.mcap').rename(store / 'blob')
+    (bag / 'b_0.mcap').symlink_to(store / 'blob')
+    got = read_bag(bag)
+    assert got.complete and not got.warnings and got.topic('op').count == 200
+
+
+def test_a_repair_says_what_metadata_named_and_the_folder_lacked(tmp_path):
+    bag = write(tmp_path / 'b')
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
+    meta['rosbag2_bagfile_information']['relative_file_paths'].append('b_1.mcap')
+    (bag / 'metadata.yaml').write_text(yaml.safe_dump(meta))
+    said = repair_bag(bag)
+    assert 'names b_1.mcap, not in the bag' in said and 'only the files present' in said

@@ -185,3 +185,17 @@ def test_stiction_study_takes_a_shipped_loop_files_name(tmp_path, capsys):
     err = capsys.readouterr().err
     figures = len(list((tmp_path / 'figures').glob('*.png')))
     assert f'and {figures} figures' in err and figures == 7
+
+
+def test_a_csv_written_through_a_link_lands_in_the_file_it_names(tmp_path):
+    data = {c: np.arange(5.0) for c in ('t', 'sp', 'op', 'mv', 'pv')}
+    real = tmp_path / 'real.csv'
+    real.write_text('old\n')
+    os.chmod(real, 0o640)
+    link = tmp_path / 'link.csv'
+    link.symlink_to(real)
+    write_csv(link, data)
+    # The link stays a link, the file it names gets the rows and keeps its permissions.
+    assert link.is_symlink() and real.read_text().startswith('t,sp,op,mv,pv\n')
+    assert (real.stat().st_mode & 0o777) == 0o640
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['link.csv', 'real.csv']

@@ -30,8 +30,8 @@ def test_a_calibrated_healthy_valve_gets_no_friction_size(loop, tmp_path, capsys
     out, report = _run(loop, 2.0 + 0.95 * loop['op'] + noise, tmp_path, capsys)
     assert report['mismatch']['friction'] is False
     assert report['mismatch']['effect'] == 'positioner_calibration'
-    assert ('explains MV without friction: this is what a friction model makes of its '
-            'timing or calibration, not a friction size') in out
+    assert ('explains MV without friction: this is what a friction model makes of what '
+            '--explain found, not a friction size') in out
 
 
 def test_play_without_a_slip_is_said_to_beat_the_valve_without_friction(loop, tmp_path, capsys):

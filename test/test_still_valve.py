@@ -28,9 +28,27 @@ def test_a_valve_that_never_breaks_away_is_still_and_one_that_slips_is_not():
     assert abs(found.noise - 0.1) < 0.02
     moving = _record(6.0)                 # OP travels 12 %: it slips every half cycle
     assert still_valve(moving['op'], moving['mv'], [(0, len(moving['op']))]) is None
-    # A healthy valve follows OP, however little OP moves.
+    # A healthy valve follows OP, however little OP moves, and however noisy its reading.
     quiet = _record(0.5, S=0.0, J=0.0)
     assert still_valve(quiet['op'], quiet['mv'], [(0, len(quiet['op']))]) is None
+    op = _record(1.0)['op']                          # 2 % of travel
+    noisy = op + 0.5 * np.random.default_rng(5).standard_normal(len(op))
+    assert still_valve(op, noisy, [(0, len(op))]) is None
+
+
+def test_a_frozen_or_stepped_reading_of_a_stuck_valve_is_still_and_a_stop_is_not():
+    stuck = _record(1.0)
+    whole = [(0, len(stuck['op']))]
+    frozen = np.full(len(stuck['op']), 47.3)
+    assert still_valve(stuck['op'], frozen, whole) is not None
+    stepped = np.round(stuck['mv'] / 0.1) * 0.1          # a 0.1 % transmitter
+    found = still_valve(stuck['op'], stepped, whole)
+    assert found is not None and found.noise >= 0.1 / np.sqrt(12.0)
+    # Held on a stop (a tight shut-off, a travel limit) is not a valve that did not break
+    # away.
+    assert still_valve(stuck['op'] - 49.0, np.full(len(stuck['op']), 0.4), whole) is None
+    # With no noise to measure, OP must travel visibly.
+    assert still_valve(50.0 + 0.1 * np.sin(np.arange(3601) / 50.0), frozen, whole) is None
 
 
 def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never_moved(
@@ -44,5 +62,5 @@ def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never
     assert m['effect'] == 'cannot_tell' and m['reason'] == 'mv_still' and m['effects'] == []
     assert 'did not break away' in m['explanation']
     caution = report['stiction']['size_caution']
-    assert 'bounded below only' in caution and 'S >= ' in caution
+    assert 'bounded below only' in caution and 'not a measured size' in caution
     assert 'mismatch: cannot tell' in capsys.readouterr().out

@@ -405,8 +405,9 @@ def analyze(record: Record, options: Options | None = None,
         still = still_valve(record.signals['op'], record.signals['mv'],
                             record.valve_segments(min_samples=2))
         if still is not None:
-            # The fit's range is as narrow as the noise, but bounds S from below only.
-            lower = f'{still.sentence()}; S >= {min(f.S for f in fitted):.2f} %'
+            # The fit's range is as narrow as the noise, but S is bounded from below only.
+            lower = (f'{still.sentence()}; the fitted S and its range are where the fit '
+                     'stopped, not a measured size')
             caution = f'{lower}; {caution}' if caution else lower
         if caution:
             report['stiction']['size_caution'] = caution

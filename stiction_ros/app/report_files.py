@@ -16,6 +16,8 @@ from typing import Callable, TYPE_CHECKING
 
 from stiction_ros.app.report_text import to_json_text
 
+from stiction_ros.viz.html_parts import INPUT_META
+
 if TYPE_CHECKING:  # pragma: no cover - for the annotations only
     from stiction_ros.analysis.pipeline import Analysis
 
@@ -60,7 +62,7 @@ def earlier_input(path: str | Path, source: str | Path) -> str | None:
     Return the recording whose report ``path`` holds when it is not ``source``, else None.
 
     Read from an earlier JSON report's ``input.path`` or an earlier page's mark
-    (:data:`stiction_ros.viz.report_html.INPUT_META`); a file that is neither
+    (:data:`stiction_ros.viz.html_parts.INPUT_META`); a file that is neither
     is not a report of ours and gives None, as a missing one does.
     """
     p = Path(path)
@@ -70,7 +72,7 @@ def earlier_input(path: str | Path, source: str | Path) -> str | None:
         with open(p, encoding='utf-8') as f:
             head = f.read(4096) if p.suffix.lower() in ('.html', '.htm') else f.read()
         if p.suffix.lower() in ('.html', '.htm'):
-            found = re.search(r'<meta name="stiction-ros-input" content="([^"]*)">', head)
+            found = re.search(f'<meta name="{INPUT_META}" content="([^"]*)">', head)
             other = html.unescape(found.group(1)) if found else None
         else:
             other = (json.loads(head).get('input') or {}).get('path')
@@ -78,16 +80,31 @@ def earlier_input(path: str | Path, source: str | Path) -> str | None:
         return None
     if not isinstance(other, str) or not other:
         return None
-    same = Path(other).name == Path(source).name or \
-        Path(other).resolve() == Path(source).resolve()
+    # A page holds its recording's full path; a JSON report the path as given, which is
+    # read from the folder of the run that wrote it: there only the name can be compared.
+    if Path(other).is_absolute():
+        same = Path(other).resolve() == Path(source).resolve()
+    else:
+        same = Path(other).name == Path(source).name
     return None if same else other
 
 
 def write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` and a final newline to ``path`` (UTF-8), creating its folder."""
+    """
+    Write ``text`` and a final newline to ``path`` (UTF-8), creating its folder.
+
+    Written beside the name and renamed over it, so that a worker stopped by
+    Ctrl-C, or a full disk, leaves the earlier report whole, not an empty one.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(text + '\n', encoding='utf-8')
+    tmp = p.with_name(f'.{p.name}.{os.getpid()}.tmp')
+    try:
+        tmp.write_text(text + '\n', encoding='utf-8')
+        os.replace(tmp, p)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_json(path: str | Path, report: dict) -> None:

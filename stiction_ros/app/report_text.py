@@ -185,7 +185,7 @@ def size_text(report: dict) -> str:
             text += ('; --explain finds play without a slip jump, not stick-slip'
                      if m.get('friction_kind') == 'backlash' else
                      '; --explain explains MV without friction: this is what a friction '
-                     'model makes of its timing or calibration, not a friction size')
+                     'model makes of what --explain found, not a friction size')
         caution = st.get('size_caution')
         return f'{text}; caution: {caution}' if caution else text
     withheld = st.get('size_withheld')
@@ -241,9 +241,12 @@ def _mismatch_lines(report):
     line += _chain_lines(report)
     names = [e['id'] for e in m.get('effects', [])]
     told = ' '.join(e['sentence'] for e in m['effects']) if names else m['explanation']
+    skew = report.get('clock_skew')
+    recorded = (f' (on OP as recorded: {skew["plain_mse_holdout_as_recorded"]:.4g})'
+                if skew else '')
     line += (f'\nmismatch: {", ".join(names) or m["effect"]} (confidence '
              f'{m["confidence"]:.2f}): {told}\nheld-out MSE: plain '
-             f'{b["mse_holdout"]:.4g} -> explained {m["mse_holdout"]:.4g}')
+             f'{b["mse_holdout"]:.4g}{recorded} -> explained {m["mse_holdout"]:.4g}')
     sized = explained_size(report)
     if sized:
         # The size line above is the plain model's; the explained model sizes the valve

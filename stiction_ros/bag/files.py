@@ -44,7 +44,9 @@ def bag_files(path: str | os.PathLike[str]) -> BagFiles:
     if path.is_file():
         return BagFiles([path])
     # rosbag2 numbers a split bag's files NAME_0 .. NAME_11: in that order, not as text.
-    present = sorted((f for f in path.glob('*.mcap') if f.is_file()), key=_split_order)
+    # Hidden files are not the recorder's: macOS leaves ._NAME.mcap beside a copied file.
+    present = sorted((f for f in path.glob('*.mcap')
+                      if f.is_file() and not f.name.startswith('.')), key=_split_order)
     meta = path / 'metadata.yaml'
     if not meta.is_file():
         if not present:
@@ -58,12 +60,12 @@ def bag_files(path: str | os.PathLike[str]) -> BagFiles:
         return BagFiles(present, [f'metadata.yaml is {why}; read the {len(present)} .mcap '
                                   "file(s) in the folder in rosbag2's numbering"])
     out = BagFiles([])
-    inside = path.resolve()
     for name in named:
         f = path / name
-        if not f.resolve().is_relative_to(inside):
+        if Path(name).is_absolute() or '..' in Path(name).parts:
             # A metadata.yaml that names ../../etc/passwd (damaged or hostile) must not
-            # make the reader open it.
+            # make the reader open it.  The name is checked, not where it leads: a bag's
+            # files may be links into a store (git-annex, DVC).
             out.notes.append(f'metadata.yaml names {name!r}, outside the bag; not read')
         elif not f.is_file():
             out.missing.append(name)

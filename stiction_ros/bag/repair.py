@@ -73,5 +73,9 @@ def repair_bag(path: str | os.PathLike[str], compression: str = 'zstd') -> str:
     if path.is_dir():
         os.replace(tmp / 'metadata.yaml', folder / 'metadata.yaml')
     shutil.rmtree(tmp)
+    said = ''.join(f'; {note}' for note in notes)
     return (f'{path}: recovered {len(order)} messages on {len(bag.topics)} topics; '
+            f'the original is kept as {damaged.name}{said} (the new metadata.yaml names '
+            'only the files present)' if notes else
+            f'{path}: recovered {len(order)} messages on {len(bag.topics)} topics; '
             f'the original is kept as {damaged.name}')

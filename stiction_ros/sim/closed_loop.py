@@ -6,9 +6,10 @@ valve, then hold MV over the sample while the plant advances.  The live ROS
 loop runs the same objects in three nodes.
 """
 
+import errno
 import os
 from os import PathLike
-import tempfile
+import secrets
 from typing import Any, Callable, Mapping, Sequence, TextIO
 
 import numpy as np
@@ -160,16 +161,20 @@ def write_csv(path: str | PathLike[str] | TextIO, data: Mapping[str, Floats],
     if hasattr(path, 'write'):
         _write_rows(path, columns, cols, n, progress)
         return
-    target = os.fspath(path)
-    fd, tmp = tempfile.mkstemp(prefix=f'.{os.path.basename(target)}.',
-                               dir=os.path.dirname(target) or '.')
+    # Through a link to the file it names; never over a file the user may not write.
+    target = os.path.realpath(os.fspath(path))
+    if os.path.exists(target) and not os.access(target, os.W_OK):
+        raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), target)
+    tmp = os.path.join(os.path.dirname(target),
+                       f'.{os.path.basename(target)}.{secrets.token_hex(4)}.tmp')
+    # Made as open() makes a file (0o666 less the umask), but only if new.
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
     try:
         with os.fdopen(fd, 'w', encoding='utf-8') as f:
             _write_rows(f, columns, cols, n, progress)
-        # mkstemp makes the file private; a CSV is as readable as any file the user writes.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        if os.path.exists(target):
+            # A file written over keeps its permissions, as open(..., 'w') would.
+            os.chmod(tmp, os.stat(target).st_mode & 0o7777)
         os.replace(tmp, target)
     except BaseException:
         os.unlink(tmp)

@@ -44,6 +44,10 @@ PARAM_WORDS = {'time_constant_s': 'time constant', 'dead_time_s': 'dead time',
 # carry a few unrounded floats (a Hammerstein interval, a note's time).
 _NUMBER = re.compile(r'(?<![\w.])(-?)(\d+\.\d+|\d+)([eE][-+]?\d+)?(?![\w.])')
 
+# The name of the page's meta tag that holds its recording's full path (a later run
+# that writes over the page says whose it was).
+INPUT_META = 'stiction-ros-input'
+
 
 def e(x: object) -> str:
     """Return ``x`` as HTML-escaped text."""

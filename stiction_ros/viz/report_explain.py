@@ -176,8 +176,11 @@ def candidate_decisions(report: dict) -> dict:
     m, cands = report['mismatch'], report.get('candidates', [])
     top = _top(cands)
     out = {}
+    # Beside a dead time or calibration the answer names that; the friction search's own
+    # answer is what decides its candidates.
+    friction_answer = m.get('friction_effect', m['effect'])
     for c in cands:
-        if c['score'] > 1.0 and m['effect'] in ('none', 'unexplained'):
+        if c['score'] > 1.0 and friction_answer in ('none', 'unexplained'):
             # Passing is not enough where the plain fit leaves nothing to explain; the
             # answer's sentence says why.
             why = 'passes, not named: nothing is named (the answer above says why)'

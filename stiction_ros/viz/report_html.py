@@ -18,8 +18,8 @@ from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND, probab
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
 from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
-from stiction_ros.viz.html_parts import clean, e, figure, MSE_UNIT, num, pct, PV_UNITS, rule, \
-    span, STYLE, table
+from stiction_ros.viz.html_parts import clean, e, figure, INPUT_META, MSE_UNIT, num, pct, \
+    PV_UNITS, rule, span, STYLE, table
 from stiction_ros.viz.report_explain import explain_parts
 from stiction_ros.viz.signature_words import SIGNATURES
 
@@ -245,9 +245,6 @@ def _provenance(report: dict) -> str:
     written = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
     return (f'<p>{when}Written {written} by stiction_ros {e(__version__)}'
             f'{detector}.</p>')
-
-
-INPUT_META = 'stiction-ros-input'
 
 
 def render(report: dict, figures: list) -> str:

@@ -12,7 +12,6 @@ Records left out of the detector's sets (hidden stiction, not judgeable)
 are left out here too.
 """
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from functools import partial
 from pathlib import Path
@@ -20,7 +19,7 @@ import time
 
 import numpy as np
 
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import worker_pool
 from stiction_ros.analysis.detection.cnn import channels, CnnModel, N_CHANNELS
 
 CORPUS = range(2_000_000, 2_040_000)
@@ -92,7 +91,7 @@ def corpus(seeds, jobs: int = 2, say=print, without_deadband_like: bool = False,
     t0, recs = time.perf_counter(), []
     draw = partial(_record, without_deadband_like=without_deadband_like,
                    healthy_only=healthy_only)
-    with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
+    with worker_pool(jobs) as pool:
         for i, r in enumerate(pool.map(draw, seeds, chunksize=64), 1):
             if r is not None:
                 recs.append(r)

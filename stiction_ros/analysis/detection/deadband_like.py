@@ -28,13 +28,12 @@ the 107 backlash valves, which look the same (docs/DETECTION_LOG.md).
 Only the simulated sets use this; a plant record has no true valve position.
 """
 
-from concurrent.futures import ProcessPoolExecutor
 import hashlib
 from pathlib import Path
 
 import numpy as np
 
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import worker_pool
 from stiction_ros.analysis.detection.dataset import code_version, MIN_FOOTPRINT, \
     stiction_footprint
 
@@ -90,7 +89,7 @@ def seed_footprints(seeds, jobs: int = 1, cache: str | Path | None = None) -> np
         if path.is_file():
             return np.load(path)
     if jobs > 1 and len(seeds) > 1:
-        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
+        with worker_pool(jobs) as pool:
             out = np.array(list(pool.map(_seed_footprint, seeds, chunksize=20)), dtype=float)
     else:
         out = np.array([_seed_footprint(s) for s in seeds], dtype=float)

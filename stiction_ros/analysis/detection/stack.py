@@ -20,13 +20,12 @@ The weights live in the tree model's header (``meta['stack']``, read by
 with; a different or missing network is a :class:`DetectorFileError`.
 """
 
-from concurrent.futures import ProcessPoolExecutor
 import hashlib
 from pathlib import Path
 
 import numpy as np
 
-from stiction_ros._threads import one_blas_thread
+from stiction_ros._threads import worker_pool
 from stiction_ros.analysis.detection import cnn
 from stiction_ros.analysis.detection.stale import drop_held
 from stiction_ros.analysis.detection.timing import realign
@@ -95,7 +94,7 @@ def seed_logits(seeds, jobs: int = 1, cache: str | Path | None = None) -> np.nda
     if jobs <= 1:
         out = np.array([_seed_logit(s) for s in seeds])
     else:
-        with ProcessPoolExecutor(jobs, initializer=one_blas_thread) as pool:
+        with worker_pool(jobs) as pool:
             out = np.array(list(pool.map(_seed_logit, seeds, chunksize=32)))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)

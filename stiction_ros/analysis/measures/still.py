@@ -2,9 +2,9 @@
 Whether the valve moved at all: MV within its own noise while OP travelled.
 
 A valve that never breaks away shows how large its friction band is only from
-below (wider than OP's travel), and nothing of how it moves: no slip, no
-timing, no calibration.  Sizes fitted to such a record and a search for the
-physics a model left out would both read the noise.
+below (wider than OP's moves away from where it stuck), and nothing of how it
+moves: no slip, no timing, no calibration.  Sizes fitted to such a record and
+a search for the physics a model left out would both read the noise.
 """
 
 from dataclasses import dataclass
@@ -14,6 +14,14 @@ import numpy as np
 # MV's spread (1st to 99th percentile) must pass this many noise widths to count as
 # motion: Gaussian noise alone spans about 4.7 of them, so 8 leaves a margin.
 MOVED = 8.0
+# A reading that follows OP this well (correlation) moves with it, however noisy.
+FOLLOWS = 0.3
+# A position within this much of a stop (%) is held there: a travel limit, a
+# positioner's tight shut-off, not friction.
+NEAR_STOP = 2.0
+# With no noise to measure (a constant or frozen reading), OP must travel this far
+# (%) for the stillness to mean anything.
+VISIBLE = 0.5
 
 
 @dataclass(frozen=True)
@@ -28,10 +36,11 @@ class Still:
         """Return what it means, in words."""
         return (f'MV stayed within its noise (it spread {self.mv_spread:.2g} %, noise '
                 f'{self.noise:.2g} %) while OP travelled {self.op_spread:.2g} %: the valve '
-                f'did not break away (its friction band is wider than the travel of OP here, '
-                f'so S is bounded below only), or the position signal is frozen. Nothing '
-                f'of how it moves can be read: a valve travel test, or a record with '
-                f'larger OP moves, tells')
+                f'did not break away (its friction band is wider than the moves of OP away '
+                f'from where it stuck, between half and all of that travel, so S is bounded '
+                f'below only), or it is held (no air, a handwheel, a locked positioner), or '
+                f'the position signal is frozen. Nothing of how it moves can be read: a '
+                f'valve travel test, or a record with larger OP moves, tells')
 
 
 def still_valve(op: np.ndarray, mv: np.ndarray, segments) -> Still | None:
@@ -40,19 +49,36 @@ def still_valve(op: np.ndarray, mv: np.ndarray, segments) -> Still | None:
 
     The noise width is read from MV's sample-to-sample differences (a robust
     standard deviation, divided by the square root of 2), so that a drift or
-    a step counts as motion; a reading with no noise at all (steps of a
-    quantum, mostly zero differences) counts any change as motion.
+    a step counts as motion; a reading in steps of a quantum with mostly equal
+    neighbours has at least the quantum's own noise (q / sqrt 12).  A reading
+    that follows OP, or sits at a stop, is not still.
     """
-    idx = np.concatenate([np.arange(a, b) for a, b in segments]) if segments else \
-        np.arange(0)
-    if len(idx) < 10:
+    segments = [(a, b) for a, b in segments if b - a > 1]
+    if sum(b - a for a, b in segments) < 10:
         return None
-    u, y = np.asarray(op, dtype=np.float64)[idx], np.asarray(mv, dtype=np.float64)[idx]
-    dy = np.concatenate([np.diff(np.asarray(mv, dtype=np.float64)[a:b])
-                         for a, b in segments if b - a > 1])
+    u = np.concatenate([np.asarray(op[a:b], dtype=np.float64) for a, b in segments])
+    y = np.concatenate([np.asarray(mv[a:b], dtype=np.float64) for a, b in segments])
+    ok = np.isfinite(u) & np.isfinite(y)
+    u, y = u[ok], y[ok]
+    if len(y) < 10:
+        return None
+    dy = np.concatenate([np.diff(np.asarray(mv[a:b], dtype=np.float64))
+                         for a, b in segments])
+    dy = dy[np.isfinite(dy)]
     noise = 1.4826 * float(np.median(np.abs(dy - np.median(dy)))) / np.sqrt(2.0)
+    steps = np.abs(dy[dy != 0.0])
+    if len(steps):
+        noise = max(noise, float(steps.min()) / np.sqrt(12.0))
     mv_spread = float(np.subtract(*np.percentile(y, [99, 1])))
     op_spread = float(np.subtract(*np.percentile(u, [99, 1])))
-    if noise <= 0.0 or mv_spread > MOVED * noise or op_spread <= MOVED * noise:
+    median = float(np.median(y))
+    if min(median, 100.0 - median) < NEAR_STOP:
+        return None
+    if noise > 0.0:
+        if mv_spread > MOVED * noise or op_spread <= MOVED * noise:
+            return None
+    elif op_spread <= VISIBLE:
+        return None
+    if np.std(y) > 0.0 and np.std(u) > 0.0 and np.corrcoef(u, y)[0, 1] > FOLLOWS:
         return None
     return Still(mv_spread, op_spread, noise)

@@ -241,11 +241,11 @@ def explain_record(t, op, mv, segments, sample_time, holdout=friction_explain.HO
     m['friction'] = winner.friction == 'stiction'
     m['friction_kind'] = winner.friction
     if lead is not None:
-        _put_lead_first(report, lead)
-        # The plain model is the one without timing: on OP as recorded, the lead in.
-        report['baseline'], arrays['mv_baseline'], _ = plain_baseline(
-            op_recorded, mv, segments, sample_time, n_fit)
-        report['series']['mv_baseline'] = friction_explain._json(arrays['mv_baseline'])
+        # Every section reads OP a lead earlier (the plain model, where it misses, the
+        # chains); what the plain model makes of OP as recorded is the lead's own figure.
+        as_recorded, _, _ = plain_baseline(op_recorded, mv, segments, sample_time, n_fit)
+        _put_lead_first(report, lead, as_recorded)
+        report['series']['op_recorded'] = friction_explain._json(op_recorded)
     f_hold = sections['frictionless']['mse_holdout']
     if m['friction'] and len(rec.hold_idx) and m['mse_holdout'] > f_hold:
         m['note'] = (f'the friction model is worse on held-out data ({m["mse_holdout"]:.4g}) '
@@ -277,7 +277,7 @@ def _is_stiction(rec, report, arrays, effects, backlash, sticky, frictionless, t
     return tests['stiction_vs_backlash']['wins'] and tests['final_vs_frictionless']['wins']
 
 
-def _put_lead_first(report, lead):
+def _put_lead_first(report, lead, as_recorded):
     # Everything after was fitted to OP read ahead: the lead is the first thing found.
     m = report['mismatch']
     effect = lead_effect(lead)
@@ -293,6 +293,9 @@ def _put_lead_first(report, lead):
     m['model']['params']['mv_lead_s'] = lead['s']
     m['model']['name'] = f'{m["model"]["name"]}+clock_skew'
     report['clock_skew'] = {'mv_lead_s': lead['s'], 'samples': lead['samples'],
+                            'at_least': lead['at_least'],
+                            'plain_mse_holdout_as_recorded': as_recorded['mse_holdout'],
+                            'plain_mse_fit_as_recorded': as_recorded['mse_fit'],
                             **{k: lead['test'][k] for k in ('lr', 'threshold', 'heldout_gain',
                                                             'heldout_p') if k in lead['test']}}
 
@@ -308,6 +311,10 @@ def _name_what_was_found(m, kept):
         m['explanation'] = ' '.join(e['sentence'] for e in m['effects'])
         if kept and kept.get('score'):
             m['confidence'] = round(min(max(1.0 - 1.0 / kept['score'], 0.0), 1.0), 3)
+        elif m['effect'] == 'quantisation':
+            # Read from the reading's grid of values, not a test: as the answer without
+            # friction gives it.
+            m['confidence'] = 1.0
 
 
 def _chain_answer(t, rec, winner, n_fit, holdout):

@@ -74,7 +74,8 @@ def _asym_sentence(q, S, J):
     more, less = ('opening', 'closing') if a > 0 else ('closing', 'opening')
     return (f'The friction forces are {1 + abs(a):.2f} times their mean {more} and '
             f'{1 - abs(a):.2f} times {less} '
-            f'(plug unbalance, gravity or packing): after a reversal the valve needs '
+            f'(packing whose friction depends on the direction of travel, such as V-rings): '
+            f'after a reversal the valve needs '
             f'{S + a * J:.2f} % of OP to start opening but {S - a * J:.2f} % to start closing, '
             f'and jumps {J * (1 + a):.2f} % against {J * (1 - a):.2f} %.')
 

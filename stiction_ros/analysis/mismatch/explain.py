@@ -333,8 +333,7 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
             'residual_acf1': round(acf, 4),
             # Reused replicates (``calibrated``) count as what they were: their acf1 list.
             'bootstrap': {'replicates': len(acfs), 'reused': calibrated is not None,
-                          'largest_lr': {k: round(v, 3)
-                                                             for k, v in worst.items()},
+                          'largest_lr': {k: round(v, 3) for k, v in worst.items()},
                           'acf1': [round(a, 4) for a in acfs], 'margin': MARGIN}},
         'candidates': sorted(candidates, key=lambda c: -c['score']),
         'holdout': {'share': holdout, 'first_sample': n_fit,

@@ -20,7 +20,8 @@ from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
 
 # The longest lead looked for, in samples.
 MAX_LEAD = 16
-# A lead under this many samples is within what the fit's dead time places at all.
+# A lead under this many samples is within what the fit's dead time places at all; the
+# screen below, a whole sample ahead, passes leads of about one sample or more.
 MIN_LEAD = 0.5
 
 
@@ -39,7 +40,16 @@ def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
     e_full, e_sticky = rec.errors(full), rec.errors(sticky)
     f = rec.fit_idx
     use_sticky = np.nansum(e_sticky[f] ** 2) < np.nansum(e_full[f] ** 2)
-    e0 = e_sticky if use_sticky else e_full
+    ref, e0 = (sticky, e_sticky) if use_sticky else (full, e_full)
+    # A screen that costs no fit: a reading that lags OP, or that the same chain fits
+    # worse with OP a sample earlier, does not lead it (most records end here).  A whole
+    # sample: half of one, interpolated, moves a sticky chain's slips off the data.
+    if ref.params['delay'] >= MIN_LEAD:
+        return None
+    ahead = rec.read(ins.chain_output(ins.shift(rec.op, -1.0, rec.segments), rec.mv,
+                                      rec.segments, ref)) - rec.mv
+    if not np.nansum(ahead[f] ** 2) < np.nansum(e0[f] ** 2):
+        return None
     best = None
     advance = 1
     while advance <= MAX_LEAD:
@@ -51,10 +61,14 @@ def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
         result = test(rec, e0, e_a, 1)
         if not result['wins']:
             break
-        best = {'samples': advance - float(fit.params['delay']), 'test': result}
+        best = {'samples': advance - float(fit.params['delay']), 'test': result,
+                'at_least': False}
         if fit.params['delay'] >= MIN_LEAD:
             break           # read further ahead than MV runs: the fit put a delay back
         advance *= 2
+    else:
+        if best is not None:
+            best['at_least'] = True     # still ahead at the longest lead looked for
     if best is None or best['samples'] < MIN_LEAD:
         return None
     best['samples'] = round(best['samples'], 2)
@@ -65,10 +79,14 @@ def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
 def lead_effect(lead: dict) -> dict:
     """Return the lead as a named effect of ``--explain``."""
     s, n = lead['s'], lead['samples']
+    least = 'at least ' if lead.get('at_least') else ''
     return {'id': 'clock_skew', 'size': s, 'unit': 's', 'uncertainty': None,
-            'sentence': (f'The position moves {s:.3g} s ({n:.3g} sample{"" if n == 1 else "s"}) '
-                         'before OP commands '
-                         'it, which no valve can: OP and MV are stamped on different clocks, '
-                         'or OP is logged late. The rest is read with OP that much earlier; '
-                         'align the two tags in the historian.'),
+            'sentence': (f'The position moves {least}{s:.3g} s ({n:.3g} '
+                         f'sample{"" if n == 1 else "s"}) before OP commands it, which no '
+                         'valve can: OP and MV are stamped on different clocks or OP is '
+                         'logged late, or the OP recorded is not what drove the valve (a '
+                         'controller tracking in manual, an override or selector, OP '
+                         'compressed by the historian). The rest is read with OP that much '
+                         'earlier; check the time stamps of the two tags and what drove the '
+                         'valve.'),
             'params': {'mv_lead_s': s}}

@@ -85,8 +85,9 @@ def chain_effects(fit, se: dict, sample_time: float, quantum: float = 0.0) -> li
             'id': 'backlash', 'size': round(fit.S, 4), 'unit': '%', 'uncertainty': None,
             'sentence': (f'Play of {_fmt(fit.S)} % without stick: after each reversal OP '
                          'must take up the play before the valve moves, then it moves '
-                         'smoothly with no slip jump: a worn linkage or loose positioner '
-                         'feedback, or friction whose static and kinetic forces are equal '
+                         'smoothly with no slip jump: a worn linkage, loose positioner '
+                         'feedback, a deadband set in the positioner or a low positioner '
+                         'gain, or friction whose static and kinetic forces are equal '
                          "(the chapter's pure deadband, J = 0), which OP and MV cannot tell "
                          'apart; not stick-slip.'),
             'params': {'backlash': fit.S}})
