@@ -41,11 +41,16 @@ def test_metadata_that_is_no_rosbag2_metadata_is_read_past_and_said(tmp_path, te
     assert again.complete and not again.warnings and again.topic('op').count == 200
 
 
-def test_a_file_metadata_names_and_the_folder_lacks_makes_the_bag_incomplete(tmp_path):
-    bag = write(tmp_path / 'b')
+def _also_named(bag, name):
+    # metadata.yaml names one file more than the folder holds.
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
-    meta['rosbag2_bagfile_information']['relative_file_paths'].append('b_1.mcap')
+    meta['rosbag2_bagfile_information']['relative_file_paths'].append(name)
     (bag / 'metadata.yaml').write_text(yaml.safe_dump(meta))
+    return bag
+
+
+def test_a_file_metadata_names_and_the_folder_lacks_makes_the_bag_incomplete(tmp_path):
+    bag = _also_named(write(tmp_path / 'b'), 'b_1.mcap')
     got = read_bag(bag)
     assert not got.complete and got.topic('op').count == 200
     assert any('names b_1.mcap, not in the bag' in w for w in got.warnings)
@@ -103,9 +108,5 @@ def test_a_bags_file_may_be_a_link_into_a_store(tmp_path):
 
 
 def test_a_repair_says_what_metadata_named_and_the_folder_lacked(tmp_path):
-    bag = write(tmp_path / 'b')
-    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
-    meta['rosbag2_bagfile_information']['relative_file_paths'].append('b_1.mcap')
-    (bag / 'metadata.yaml').write_text(yaml.safe_dump(meta))
-    said = repair_bag(bag)
+    said = repair_bag(_also_named(write(tmp_path / 'b'), 'b_1.mcap'))
     assert 'names b_1.mcap, not in the bag' in said and 'only the files present' in said
