@@ -26,8 +26,11 @@ def test_ctrl_c_stops_a_folders_run_on_two_workers_without_finishing_the_queue(t
     cli = Path(sys.executable).with_name('stiction-analyze')
     err = tmp_path / 'err.txt'
     with open(err, 'wb') as errf:
+        # As a terminal starts it: Ctrl-C not ignored (a test worker of pytest-xdist ignores
+        # it, and a child inherits that).
         proc = subprocess.Popen([str(cli), str(folder), '--jobs', '2', '--out-dir', str(out)],
-                                stdout=subprocess.DEVNULL, stderr=errf, start_new_session=True)
+                                stdout=subprocess.DEVNULL, stderr=errf, start_new_session=True,
+                                preexec_fn=_ctrl_c_as_a_terminal_has_it)
         try:
             # Under way: the first report is written (imports and workers long started).
             give_up = time.monotonic() + 120
@@ -59,3 +62,7 @@ def _in_session(sid):
         if int(fields[3]) == sid and fields[0] != 'Z':
             found.append(int(stat.parent.name))
     return found
+
+
+def _ctrl_c_as_a_terminal_has_it():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
