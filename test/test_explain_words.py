@@ -48,3 +48,18 @@ def test_play_without_a_slip_is_said_to_beat_the_valve_without_friction(loop, tm
     # says what --explain makes of the position instead.
     assert report['stiction']['detected']
     assert 'play without a slip jump (backlash or a pure deadband) beats' in out
+
+
+def test_the_notes_reconcile_the_verdict_and_weigh_a_worse_held_out_fit(loop, tmp_path, capsys):
+    from stiction_ros.app.report_text import _mismatch_lines
+    noise = 0.1 * np.random.default_rng(2).standard_normal(len(loop['op']))
+    _, report = _run(loop, 2.0 + 0.95 * loop['op'] + noise, tmp_path, capsys)
+    m, b = report['mismatch'], report['baseline']
+    # The headline from OP and PV says no stiction where --explain claims it: said.
+    report['stiction']['detected'], m['friction'] = False, True
+    assert 'claims stiction from the valve position itself' in _mismatch_lines(report)
+    # Worse held out by a fraction of a per cent is noise; by a fifth, a warning.
+    m['mse_holdout'] = b['mse_holdout'] * 1.004
+    assert 'worse held out' not in _mismatch_lines(report)
+    m['mse_holdout'] = b['mse_holdout'] * 1.2
+    assert 'do not improve the fit on data they were not fitted to' in _mismatch_lines(report)
