@@ -296,8 +296,8 @@ def _put_lead_first(report, lead, as_recorded):
                             'at_least': lead['at_least'],
                             'plain_mse_holdout_as_recorded': as_recorded['mse_holdout'],
                             'plain_mse_fit_as_recorded': as_recorded['mse_fit'],
-                            **{k: lead['test'][k] for k in ('lr', 'threshold', 'heldout_gain',
-                                                            'heldout_p') if k in lead['test']}}
+                            **{k: test[k] for k in ('lr', 'threshold', 'heldout_gain',
+                                                    'heldout_p') if k in test}}
 
 
 def _name_what_was_found(m, kept):

@@ -6,9 +6,12 @@ moves says that the two are stamped on different clocks (or OP is logged
 late).  No chain stage can model it (a dead time is at least 0), so a fit
 of the early reading reaches for whatever else lowers its error, typically
 a positioner calibration, and names it.  Here OP is read ahead by whole
-samples, doubling, while the valve without friction fitted to it beats the
-one fitted to OP as recorded on the fitted part and held out; the chain's
-own dead time then places the lead to a fraction of a sample.
+samples, doubling, while the chain refitted to it (the valve without friction,
+or the stiction chain where that fits better) beats the one fitted to OP as
+recorded on the fitted part and held out; the chain's own dead time then
+places the lead to a fraction of a sample.  A screen comes first: the chain
+as fitted, a sample ahead, must fit better, so a record without a lead costs
+no fit.
 """
 
 from typing import Any, Callable
