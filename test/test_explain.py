@@ -13,7 +13,8 @@ from stiction_ros.analysis.mismatch.explain import explain, fit_all
 from stiction_ros.analysis.mismatch.fit import START_SAMPLES
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.models import create
-from stiction_ros.sim.closed_loop import write_csv
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import resolve_loop
 from stiction_ros.sim.concealed_cases import concealed_case, SIZES
 
 
@@ -274,3 +275,57 @@ def test_an_exact_fit_stays_in_the_held_out_chart():
     labels = [t.get_text() for t in ax.get_yticklabels()]
     assert labels == ['plain Kano', 'no friction', 'backlash']
     assert [t.get_text() for t in ax.texts].count(' 0 (exact)') == 2
+
+
+def test_he_model_is_kano_with_a_stribeck_threshold_of_j_per_sample():
+    # He's valve keeps moving only while each sample's input step exceeds fs - fd = J, and
+    # breaks away as Kano's does; --explain names He's valve by this identity.
+    rng = np.random.default_rng(3)
+    stribeck = next(e for e in EFFECTS if e.eid == 'stribeck_stick_slip')
+    out, rest = np.empty(4000), np.empty(4000)
+    for _ in range(4):
+        u = np.clip(50 + np.cumsum(rng.normal(0, 0.8, len(out))), 0, 100)
+        S = rng.uniform(1, 6)
+        J = rng.uniform(0.1, 0.9) * S
+        he = create('he', S=S, J=J).simulate(u, y0=50.0)
+        p = stribeck.vector((J,), Context(1.0, len(u), 50.0))
+        kk.kano_effects_output(u, np.array([0]), np.array([len(u)]), np.array([50.0]), S, J,
+                               p, out, rest)
+        assert np.array_equal(out, he)
+        assert np.max(np.abs(create('kano', S=S, J=J).simulate(u, y0=50.0) - he)) > 0.1
+
+
+def trial_loop(model, S, J, seed):
+    """A PI loop with set-point and load steps and slow OP, of the kind a trial used."""
+    doc = {'name': 'trial', 'sample_time': 1.0, 'duration': 3600.0,
+           'plant': {'num': [2.0], 'den': [25.0, 1.0], 'delay': 3.0, 'mv0': 50.0, 'pv0': 0.0,
+                     'disturbance_steps': [[420.0, 5.0], [1150.0, -7.0], [1900.0, 4.0],
+                                           [2600.0, -5.0], [3150.0, 6.0]]},
+           'controller': {'mode': 'closed_loop', 'Kc': 1.04, 'Ti': 24.0, 'setpoint': {
+               'type': 'steps', 'steps': [[0.0, 0.0], [300.0, 10.0], [800.0, 2.0],
+                                          [1400.0, 14.0], [2100.0, 5.0], [2700.0, 16.0],
+                                          [3300.0, 7.0]]}},
+           'valve': {'model': model, 'S': S, 'J': J},
+           'noise': {'pv_std': 0.1, 'mv_std': 0.05, 'seed': seed}}
+    return simulate_loop(resolve_loop(doc))
+
+
+def test_a_plain_kano_valve_is_not_given_physics_for_the_plain_fits_miss():
+    # The plain fit's global grid stops at S 2.81, J 0.84 on this record (ten times the SSE
+    # of the truth); a Stribeck fit, searched around it, found S 3, J 1 and was named.
+    d = trial_loop('kano', 3.0, 1.0, 26)
+    report, _ = explain(d['t'], d['op'], d['mv'], [(0, len(d['t']))], 1.0, reps=1)
+    b = report['baseline']
+    assert report['mismatch']['effect'] == 'none', report['candidates'][0]
+    assert abs(b['S'] - 3.0) < 0.01 and abs(b['J'] - 1.0) < 0.01
+    assert b['mse_fit'] < 1.1 * 0.05 ** 2
+
+
+def test_a_he_valve_is_named_as_kano_sticking_again_below_j_per_sample():
+    d = trial_loop('he', 4.0, 1.0, 32)
+    report, _ = explain(d['t'], d['op'], d['mv'], [(0, len(d['t']))], 1.0, reps=1)
+    m, top = report['mismatch'], report['candidates'][0]
+    assert m['effect'] == 'stribeck_stick_slip' and top['he_model']
+    assert "He et al.'s" in m['explanation']
+    assert abs(top['S'] - 4.0) < 0.02 and abs(top['J'] - 1.0) < 0.02
+    assert m['mse_holdout'] < 0.2 * report['baseline']['mse_holdout']

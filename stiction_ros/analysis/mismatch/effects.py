@@ -140,7 +140,7 @@ EFFECTS = (
            lambda ctx: [(float(a),) for a in np.linspace(-0.6, 0.6, 17) if abs(a) > 1e-9],
            _vec(a=(kk.DRIFT, _same)), _drift_sentence),
     Effect('stribeck_stick_slip', ('min_speed_pct_s',),
-           lambda ctx: [(float(v / ctx.sample_time),) for v in np.geomspace(0.003, 0.5, 14)],
+           lambda ctx: [(float(v / ctx.sample_time),) for v in np.geomspace(0.003, 5.0, 18)],
            _vec(v=(kk.STRIBECK, lambda v, ctx: float(v) * ctx.sample_time)),
            _stribeck_sentence),
     Effect('presliding_creep', ('fraction',),

@@ -19,6 +19,7 @@ whatever the residual's structure.
 """
 
 from concurrent.futures import ThreadPoolExecutor
+import dataclasses
 import math
 import time
 
@@ -28,8 +29,8 @@ from stiction_ros._jit import load_numba
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
-from stiction_ros.analysis.mismatch.fit import effect_errors, EffectsProblem, fit_effect, \
-    RESOLUTION, start_positions
+from stiction_ros.analysis.mismatch.fit import as_plain, effect_errors, EffectsProblem, \
+    fit_effect, plain_at_fits, plain_in_window, RESOLUTION, start_positions
 from stiction_ros.kernels import kano_effects as kk
 
 HOLDOUT = 0.3
@@ -43,6 +44,27 @@ CHI2_999 = {1: 10.83, 2: 13.82}
 # (rounding, Choudhury's model read through Kano's) is structured, and white bootstrap
 # noise of its size is not, so the autocorrelation test alone called it unexplained.
 NEGLIGIBLE_RMS = RESOLUTION
+
+
+# 95 % point of chi-square with one degree of freedom.
+CHI2_95_1 = 3.84
+HE_SENTENCE = (
+    ' With the threshold at J = {J:.3g} % per sample it fits as well: this is He et al.\'s '
+    '(2007) model, whose valve sticks again each sample the input moves less than J; a '
+    'Kano valve sticks only when OP stops or reverses.')
+
+
+def _he_like(problem, ctx, fit) -> bool:
+    """
+    Return whether the Stribeck fit is He's model: its threshold at J per sample fits as well.
+
+    He's valve keeps moving only while each sample's input step exceeds
+    ``fs - fd = J``, and it breaks away as Kano's does: Kano's model with
+    that Stribeck threshold is He's model, sample for sample.
+    """
+    effect = BY_ID['stribeck_stick_slip']
+    sse = problem.sse(fit.S, fit.J, effect.vector((fit.J / ctx.sample_time,), ctx))
+    return fit.J > 0 and lr(fit.n, sse, fit.sse) < CHI2_95_1
 
 
 def split_segments(segments, n_fit):
@@ -114,6 +136,36 @@ def prepare(op, mv, fit_segments, sample_time):
     return base, problem, ctx, plain_sse
 
 
+def _moved(base, problem, ctx, plain_sse, found):
+    sse, S, J = found
+    if sse >= plain_sse:
+        return base, problem, ctx, plain_sse
+    return dataclasses.replace(base, S=float(S), J=float(J), mse=sse / problem.n), problem, \
+        ctx, sse
+
+
+def settle(prepared, fits):
+    """
+    Return (prepared, fits), the plain fit moved where the candidates' search finds it better.
+
+    The candidates are searched around the plain fit, over a wider window
+    than its global grid resolves, and one may land in a basin where the
+    plain model, tried there, fits as well.  So the plain model is searched
+    over that window too and tried near each candidate's (S, J); a
+    candidate no better than it becomes the plain model (its likelihood
+    ratio zero).  The candidates keep the plain fit they were searched
+    around, as a record's replicates do.
+    """
+    base, problem, ctx, plain_sse = prepared
+    prepared = _moved(base, problem, ctx, plain_sse,
+                      plain_in_window(problem, base.S, base.J, plain_sse))
+    base, _, _, plain_sse = prepared
+    prepared = _moved(base, problem, ctx, plain_sse,
+                      plain_at_fits(problem, fits, base.S, base.J, plain_sse))
+    base, _, _, plain_sse = prepared
+    return prepared, [as_plain(f, base.S, base.J, plain_sse) for f in fits]
+
+
 class Fitted(str):
     """
     A progress message that one candidate fit is done: the text, and its numbers.
@@ -144,8 +196,8 @@ def fit_many(prepared, jobs=1, progress=None, replicates=0):
     """
     Fit every candidate on every prepared record; return one list of fits per record.
 
-    ``prepared[0]`` is the record; with ``replicates`` > 0 the rest are its
-    bootstrap replicates, so named in the :class:`Fitted` progress messages.
+    With ``replicates`` > 0 the records are bootstrap replicates 1 to
+    ``replicates``, so named in the :class:`Fitted` progress messages.
 
     The fits are independent and their kernels release the GIL, so ``jobs``
     threads run them side by side; the results do not depend on ``jobs``.
@@ -159,7 +211,7 @@ def fit_many(prepared, jobs=1, progress=None, replicates=0):
         fit = fit_effect(problem, effect, ctx, base.S, base.J, plain_sse)
         done[0] += 1
         if progress is not None:
-            progress(Fitted.of(effect.eid, done[0], len(tasks), i if replicates else 0,
+            progress(Fitted.of(effect.eid, done[0], len(tasks), i + 1 if replicates else 0,
                                replicates))
         return fit
 
@@ -178,7 +230,8 @@ def fit_many(prepared, jobs=1, progress=None, replicates=0):
 def fit_all(op, mv, fit_segments, sample_time, progress=None, jobs=1):
     """Return (plain Fit, problem, context, plain SSE, [CandidateFit]) on the fitted segments."""
     prepared = prepare(op, mv, fit_segments, sample_time)
-    return (*prepared, fit_many([prepared], jobs, progress)[0])
+    prepared, fits = settle(prepared, fit_many([prepared], jobs, progress)[0])
+    return (*prepared, fits)
 
 
 def lr(n, plain_sse, sse):
@@ -243,19 +296,20 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
     say = progress or (lambda msg: None)
     say('fitting the plain model')
     prepared = prepare(op, mv, fit_segments, sample_time)
+    prepared, fits = settle(prepared, fit_many([prepared], jobs, say)[0])
     base, problem, ctx, plain_sse = prepared
     n_used = problem.n
-    # The bootstrap's effect-free replicates, refitted from scratch like the record;
-    # then every candidate on every one of them, side by side on ``jobs`` threads.
+    # The bootstrap's effect-free replicates of the plain model as settled, refitted
+    # from scratch like the record; every candidate on every one of them, side by
+    # side on ``jobs`` threads.
     if calibrated is not None:
         reps = 0
     ys = replicates(op, mv, fit_segments, base, plain_sse, n_used, reps, seed)
-    records = [prepared] + [prepare(op, y, fit_segments, sample_time) for y in ys]
-    all_fits = fit_many(records, jobs, say, reps)
-    fits = all_fits[0]
+    records = [prepare(op, y, fit_segments, sample_time) for y in ys]
+    settled = [settle(r, f) for r, f in zip(records, fit_many(records, jobs, say, reps))]
     stats = {f.effect: lr(n_used, plain_sse, f.sse) for f in fits}
     if calibrated is None:
-        worst, acfs = calibrate(op, fit_segments, list(zip(ys, records[1:], all_fits[1:])))
+        worst, acfs = calibrate(op, fit_segments, [(y, r, f) for y, (r, f) in zip(ys, settled)])
     else:
         worst, acfs = dict(calibrated[0]), list(calibrated[1])
     thresholds = {e.eid: max(CHI2_999[len(e.names)], MARGIN * worst[e.eid]) for e in EFFECTS}
@@ -290,6 +344,9 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
                                                      _acf1(residual_of(fit)))
             .items()}
         explanation = BY_ID[effect].sentence(chosen['params'], chosen['S'], chosen['J'])
+        if effect == 'stribeck_stick_slip' and _he_like(problem, ctx, fit):
+            chosen['he_model'] = True
+            explanation += HE_SENTENCE.format(J=fit.J)
         confidence = 1.0 - 1.0 / chosen['score']
         mv_explained = outputs[effect]
         params = {'S': chosen['S'], 'J': chosen['J'], **chosen['params']}

@@ -142,8 +142,7 @@ def _best(scores, s_ax, j_ax, keep):
 
 def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
     """Return the :class:`CandidateFit` of ``effect`` (never worse than the plain fit)."""
-    half_s = max(0.35 * S0, 0.3)
-    half_j = max(0.35 * S0, 0.3)
+    half_s, half_j = _window(S0)
     thetas = effect.grid(ctx)
     coarse = []
     for theta in thetas:
@@ -175,6 +174,59 @@ def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
     return CandidateFit(effect.eid, dict(zip(effect.names, (float(v) for v in theta))),
                         float(S), float(J), float(sse), problem.n, vector,
                         problem.evaluations)
+
+
+def _window(S0):
+    # The (S, J) window every fit searches around the plain fit: S within a third of
+    # itself (0.3 % at least), J anywhere from 0 to the window's top.
+    half = max(0.35 * S0, 0.3)
+    return half, half
+
+
+def plain_in_window(problem, S0, J0, plain_sse):
+    """
+    Return (sse, S, J): the plain model's best over the window the effects search.
+
+    The plain fit is a global grid search, and on a slowly moving OP its
+    coarse grid can miss a basin a few hundredths wide (S 2.81, J 0.84 with
+    10 times the SSE of S 3, J 1).  An effect searched over this window would
+    then find that basin with itself at almost nothing and be named for the
+    plain fit's miss, so the plain model gets the same search first.
+    """
+    half_s, half_j = _window(S0)
+    p = kk.plain_params()
+    sse, s, j = local_sj(problem, p, S0, J0, half_s, half_j, points=COARSE_POINTS, levels=1,
+                         limit=plain_sse, j_max=S0 + half_s)
+    if sse < plain_sse:
+        sse, s, j = local_sj(problem, p, s, j, half_s / 4, half_j / 4, limit=sse)
+    return (sse, s, j) if sse < plain_sse else (plain_sse, S0, J0)
+
+
+def plain_at_fits(problem, fits, S0, J0, plain_sse):
+    """
+    Return (sse, S, J): the plain model's best near any candidate's (S, J), or the plain fit.
+
+    An effect whose fit lands where the plain model fits as well or better
+    explains nothing the plain model could not: its likelihood ratio must
+    be taken against the plain model at its best.
+    """
+    best = (plain_sse, S0, J0)
+    p = kk.plain_params()
+    for f in fits:
+        if (f.S, f.J) == (S0, J0):
+            continue
+        found = local_sj(problem, p, f.S, f.J, 0.1, 0.1, points=5, keep=2, limit=best[0])
+        if found[0] < best[0]:
+            best = found
+    return best
+
+
+def as_plain(fit, S, J, sse):
+    """Return ``fit`` set back to the plain model at (S, J) when it is no better than that."""
+    if fit.sse < sse:
+        return fit
+    return CandidateFit(fit.effect, {k: 0.0 for k in fit.params}, float(S), float(J),
+                        float(sse), fit.n, kk.plain_params(), fit.evaluations)
 
 
 def effect_errors(problem, effect, ctx, fit, rho=0.0) -> dict:
