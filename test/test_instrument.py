@@ -221,3 +221,16 @@ def test_a_sticky_valve_read_ahead_of_op_is_stiction_and_a_clock_skew(loop):
     assert abs(m['effects'][0]['size'] - 2.0) < 0.1
     assert 'positioner_calibration' not in {e['id'] for e in m['effects']}
     assert abs(r['chains']['stiction']['S'] - truth['valve']['S']) < 0.3
+
+
+def test_a_reading_through_a_lag_and_ahead_of_op_is_still_a_clock_skew(loop):
+    # A lag fitted to an early reading is a shorter one (it takes in the lead), so the
+    # same chain a sample ahead fits worse: the lead shows only when the chain is refitted.
+    d, _ = loop
+    whole = [(0, len(d['op']))]
+    lagged = ins.lag(d['mv_true'], 3.0, whole)
+    r = _explain(d, ins.shift(lagged, -2.0, whole) + _noise(len(d['op']), 0.05))
+    m = r['mismatch']
+    assert m['friction'] is True and m['effects'][0]['id'] == 'clock_skew', m['effects']
+    assert abs(r['clock_skew']['samples'] - 2.0) <= 0.5
+    assert {'measurement_lag', 'response_lag', 'actuator_lag'} & {e['id'] for e in m['effects']}

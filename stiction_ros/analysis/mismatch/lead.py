@@ -11,7 +11,7 @@ or the stiction chain where that fits better) beats the one fitted to OP as
 recorded on the fitted part and held out; the chain's own dead time then
 places the lead to a fraction of a sample.  A screen comes first: the chain
 as fitted, a sample ahead, must fit better, so a record without a lead costs
-no fit.
+no fit (unless the chain has a lag, which takes in a lead and fails the screen).
 """
 
 from typing import Any, Callable
@@ -49,31 +49,51 @@ def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
     # sample: half of one, interpolated, moves a sticky chain's slips off the data.
     if ref.params['delay'] >= MIN_LEAD:
         return None
+    # A lag fitted to an early reading is a shorter one (it takes in the lead), so the
+    # same chain a sample ahead lags too little and fits worse: only a refit (the search's
+    # first step) can show that lead, at the cost of one fit on records with a lag.
+    lagged = ref.params['tau'] + ref.params['tau2'] >= MIN_LEAD
     ahead = rec.read(ins.chain_output(ins.shift(rec.op, -1.0, rec.segments), rec.mv,
                                       rec.segments, ref)) - rec.mv
-    if not np.nansum(ahead[f] ** 2) < np.nansum(e0[f] ** 2):
+    if not lagged and not np.nansum(ahead[f] ** 2) < np.nansum(e0[f] ** 2):
         return None
-    best = None
-    advance = 1
-    while advance <= MAX_LEAD:
+    tried: dict[int, dict] = {}
+
+    def refit(advance: int) -> tuple[dict, float]:
+        # OP read ``advance`` samples ahead, the chain fitted again; the lead it reads.
         op_a = ins.shift(rec.op, -float(advance), rec.segments)
         hint = fit_frictionless(op_a, rec.mv, rec.fit_segs, rec.sample_time)
         fit = (ins.fit_friction(op_a, rec.mv, rec.fit_segs, rec.sample_time, 'stiction',
                                 hint=hint) if use_sticky else hint)
         e_a = rec.read(ins.chain_output(op_a, rec.mv, rec.segments, fit)) - rec.mv
         result = test(rec, e0, e_a, 1)
+        if result['wins']:
+            tried[advance] = {'samples': advance - float(fit.params['delay']), 'test': result,
+                              'at_least': False, 'sse': float(np.nansum(e_a[f] ** 2))}
+        return result, float(fit.params['delay'])
+
+    advance = 1
+    while advance <= MAX_LEAD:
+        result, delay = refit(advance)
         if not result['wins']:
             break
-        best = {'samples': advance - float(fit.params['delay']), 'test': result,
-                'at_least': False}
-        if fit.params['delay'] >= MIN_LEAD:
-            break           # read further ahead than MV runs: the fit put a delay back
+        if delay >= MIN_LEAD:
+            # Read further ahead than MV runs: the fit put a dead time back.  The lead it
+            # reads, in whole samples, is fitted too: a lead of 5 lies between 4 and 8.
+            between = int(round(advance - delay))
+            if between >= 1 and between not in tried:
+                refit(between)
+            break
         advance *= 2
     else:
-        if best is not None:
-            best['at_least'] = True     # still ahead at the longest lead looked for
+        if tried:
+            tried[max(tried)]['at_least'] = True    # still ahead at the longest lead looked for
+    # Past the lead the fit worsens, whatever it still gains on OP as recorded: the best
+    # fit on the fitted part places it.
+    best = min(tried.values(), key=lambda b: b['sse'], default=None)
     if best is None or best['samples'] < MIN_LEAD:
         return None
+    del best['sse']
     best['samples'] = round(best['samples'], 2)
     best['s'] = round(best['samples'] * rec.sample_time, 6)
     return best
