@@ -64,3 +64,20 @@ def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never
     caution = report['stiction']['size_caution']
     assert 'bounded below only' in caution and 'not a measured size' in caution
     assert 'mismatch: cannot tell' in capsys.readouterr().out
+
+
+def test_a_reading_that_drifts_but_does_not_follow_op_is_still_and_a_sticky_one_is_not():
+    # A stuck valve read by a transmitter that drifts 0.3 % over the record: past its noise,
+    # but a fiftieth of OP's travel and not with it.
+    stuck = _record(6.0, S=20.0)                       # OP travels 12 %, S = 20 %
+    n = len(stuck['op'])
+    whole = [(0, n)]
+    drift = 48.0 + np.linspace(0.0, 0.3, n) + 0.02 * np.random.default_rng(2).standard_normal(n)
+    found = still_valve(stuck['op'], drift, whole)
+    assert found is not None and found.drifted and found.mv_spread > 8 * found.noise
+    assert 'drift of the reading' in found.sentence()
+    # A sticky valve that slips moves by most of OP's travel; a reading at a fifth of it
+    # (a gain no positioner has, but a response) is not still either.
+    assert still_valve(stuck['op'], _record(6.0)['mv'], whole) is None
+    fifth = 50.0 + 0.2 * (stuck['op'] - 50.0) + 0.02 * np.random.default_rng(4).standard_normal(n)
+    assert still_valve(stuck['op'], fifth, whole) is None

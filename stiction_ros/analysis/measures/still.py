@@ -1,5 +1,5 @@
 """
-Whether the valve moved at all: MV within its own noise while OP travelled.
+Whether the valve moved at all: MV within its noise, or a trace of OP's travel, as OP moved.
 
 A valve that never breaks away shows how large its friction band is only from
 below (wider than OP's moves away from where it stuck), and nothing of how it
@@ -22,6 +22,10 @@ NEAR_STOP = 2.0
 # With no noise to measure (a constant or frozen reading), OP must travel this far
 # (%) for the stillness to mean anything.
 VISIBLE = 0.5
+# A reading that spreads less than this share of OP's travel does not follow OP,
+# however far past its noise it drifts: no position answers its command at a
+# twentieth of its size (a stuck valve's reading that drifts, a dead transmitter).
+FOLLOW_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -31,27 +35,35 @@ class Still:
     mv_spread: float
     op_spread: float
     noise: float
+    # True when MV moved past its noise but by under FOLLOW_SHARE of OP's travel.
+    drifted: bool = False
 
     def sentence(self) -> str:
         """Return what it means, in words."""
-        return (f'MV stayed within its noise (it spread {self.mv_spread:.2g} %, noise '
-                f'{self.noise:.2g} %) while OP travelled {self.op_spread:.2g} %: the valve '
+        how = (f'MV moved only {self.mv_spread:.2g} % (noise {self.noise:.2g} %), under '
+               f'{100 * FOLLOW_SHARE:.0f} % of OP\'s travel and not with it, a drift of the '
+               'reading rather than a response,' if self.drifted else
+               f'MV stayed within its noise (it spread {self.mv_spread:.2g} %, noise '
+               f'{self.noise:.2g} %)')
+        return (f'{how} while OP travelled {self.op_spread:.2g} %: the valve '
                 f'did not break away (its friction band is wider than the moves of OP away '
                 f'from where it stuck, between half and all of that travel, so S is bounded '
                 f'below only), or it is held (no air, a handwheel, a locked positioner), or '
-                f'the position signal is frozen. Nothing of how it moves can be read: a '
+                f'the position signal is frozen or dead. Nothing of how it moves can be read: a '
                 f'valve travel test, or a record with larger OP moves, tells')
 
 
 def still_valve(op: np.ndarray, mv: np.ndarray, segments) -> Still | None:
     """
-    Return a :class:`Still` when MV did not move beyond its noise while OP did, else None.
+    Return a :class:`Still` when MV did not follow OP's travel, else None.
 
     The noise width is read from MV's sample-to-sample differences (a robust
     standard deviation, divided by the square root of 2), so that a drift or
     a step counts as motion; a reading in steps of a quantum with mostly equal
-    neighbours has at least the quantum's own noise (q / sqrt 12).  A reading
-    that follows OP, or sits at a stop, is not still.
+    neighbours has at least the quantum's own noise (q / sqrt 12).  Still:
+    MV within its noise (and not correlated with OP, which a noisy reading
+    that follows OP is), or past it by under ``FOLLOW_SHARE`` of OP's travel
+    (``drifted``).  A reading at a stop is not still.
     """
     segments = [(a, b) for a, b in segments if b - a > 1]
     if sum(b - a for a, b in segments) < 10:
@@ -74,10 +86,11 @@ def still_valve(op: np.ndarray, mv: np.ndarray, segments) -> Still | None:
     median = float(np.median(y))
     if min(median, 100.0 - median) < NEAR_STOP:
         return None
-    if noise > 0.0:
-        if mv_spread > MOVED * noise or op_spread <= MOVED * noise:
-            return None
-    elif op_spread <= VISIBLE:
+    if op_spread <= max(VISIBLE, MOVED * noise):
+        return None
+    if mv_spread < FOLLOW_SHARE * op_spread and mv_spread > MOVED * noise:
+        return Still(mv_spread, op_spread, noise, drifted=True)
+    if noise > 0.0 and mv_spread > MOVED * noise:
         return None
     if np.std(y) > 0.0 and np.std(u) > 0.0 and np.corrcoef(u, y)[0, 1] > FOLLOWS:
         return None
