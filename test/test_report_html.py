@@ -330,7 +330,9 @@ def test_the_size_after_explain_is_the_explained_models_wherever_it_is_read(page
     text = words(parse(path))
     assert (f"the valve itself has S {params['S']:.4g} % and J {params['J']:.4g} %"
             in text)
-    assert f"in place: S={params['S']:.2f} % J={params['J']:.2f} %" in size_text(report)
+    assert size_text(report).startswith(
+        f"S={params['S']:.2f} % J={params['J']:.2f} % (with the physics --explain found in "
+        'place: kano+measurement_lag); the plain fit, which leaves it out: ')
     # Without a named effect the size is the fits' alone.
     assert 'in place' not in size_text(pages['undershoot'][1])
 

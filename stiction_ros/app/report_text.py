@@ -176,8 +176,11 @@ def size_text(report: dict) -> str:
         text = f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
         sized = explained_size(report)
         if sized:
-            text += (f'; with the physics --explain found in place: S={sized[1]:.2f} % '
-                     f'J={sized[2]:.2f} % ({sized[0]})')
+            # The explained size first: read top-down, the plain fit's narrow ranges around
+            # a size the lag or timing moved (J 0.00-0.02 for a J of 1.5) came first.
+            text = (f'S={sized[1]:.2f} % J={sized[2]:.2f} % (with the physics --explain '
+                    f'found in place: {sized[0]}); the plain fit, which leaves it out: '
+                    f'{text}, ranges that hold only if it were right')
         m = report.get('mismatch') or {}
         if m.get('friction') is False:
             # Held out, no stick-slip beat the valve without it: the fit's S and J are what

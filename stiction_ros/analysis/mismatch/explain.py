@@ -29,6 +29,7 @@ from stiction_ros._jit import load_numba
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
+from stiction_ros.analysis.mismatch.instrument import quantum
 from stiction_ros.analysis.mismatch.fit import as_plain, effect_errors, EffectsProblem, \
     fit_effect, plain_at_fits, plain_in_window, RESOLUTION, start_positions
 from stiction_ros.kernels import kano_effects as kk
@@ -192,18 +193,21 @@ class Fitted(str):
         return msg
 
 
-def fit_many(prepared, jobs=1, progress=None, replicates=0):
+def fit_many(prepared, jobs=1, progress=None, replicates=0, counted=(0, None)):
     """
     Fit every candidate on every prepared record; return one list of fits per record.
 
     With ``replicates`` > 0 the records are bootstrap replicates 1 to
     ``replicates``, so named in the :class:`Fitted` progress messages.
+    ``counted``: (fits done before, fits in all) for those messages, where this
+    call is one part of a larger count.
 
     The fits are independent and their kernels release the GIL, so ``jobs``
     threads run them side by side; the results do not depend on ``jobs``.
     """
     tasks = [(i, effect) for i in range(len(prepared)) for effect in EFFECTS]
-    done = [0]
+    done = [counted[0]]
+    total = counted[1] or len(tasks)
 
     def one(task):
         i, effect = task
@@ -211,7 +215,7 @@ def fit_many(prepared, jobs=1, progress=None, replicates=0):
         fit = fit_effect(problem, effect, ctx, base.S, base.J, plain_sse)
         done[0] += 1
         if progress is not None:
-            progress(Fitted.of(effect.eid, done[0], len(tasks), i + 1 if replicates else 0,
+            progress(Fitted.of(effect.eid, done[0], total, i + 1 if replicates else 0,
                                replicates))
         return fit
 
@@ -240,9 +244,20 @@ def lr(n, plain_sse, sse):
 
 
 def replicates(op, mv, fit_segments, base, plain_sse, n, reps, seed):
-    """Return ``reps`` effect-free records: the plain model on the recorded OP, plus noise."""
+    """
+    Return ``reps`` effect-free records: the plain model on the recorded OP, plus noise.
+
+    A reading in steps of a quantum is read so in the replicates too (with
+    the noise less the steps' own q^2/12): rounding a stuck position is not
+    white noise, and a fit of the steps may gain on it what no effect causes.
+    """
     rng = np.random.default_rng(seed)
     sigma = math.sqrt(plain_sse / n)
+    idx = np.concatenate([np.arange(a, b) for a, b in fit_segments])
+    q = quantum(mv, idx)
+    if q > 0.0:
+        origin = float(np.median(np.mod(mv[idx], q)))
+        sigma = math.sqrt(max(sigma ** 2 - q ** 2 / 12.0, 0.0))
     out = []
     for _ in range(reps):
         # A real valve's S and J are not on the fit's grid, and the breakaway flips
@@ -251,7 +266,8 @@ def replicates(op, mv, fit_segments, base, plain_sse, n, reps, seed):
         J = min(max(base.J + rng.uniform(-0.5, 0.5) * RESOLUTION, 0.0), S)
         # Each replicate starts where the plain model starts: at the measured position.
         clean, _ = model_output(op, mv, fit_segments, S, J, kk.plain_params())
-        out.append(clean + sigma * rng.standard_normal(len(op)))
+        y = clean + sigma * rng.standard_normal(len(op))
+        out.append(origin + q * np.round((y - origin) / q) if q > 0.0 else y)
     return out
 
 
@@ -274,14 +290,12 @@ def masked_mse(a, b, mask):
 
 
 def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, seed=0,
-            progress=None, jobs=1, calibrated=None):
+            progress=None, jobs=1):
     """
     Return the ``--explain`` report sections (a dict) and the arrays behind the figures.
 
     ``segments``: the valid stretches (start, stop) of the record; ``jobs``: threads
-    for the candidate fits (the result does not depend on it).  ``calibrated``:
-    (largest LR per effect, residual autocorrelations) of an earlier run's
-    replicates of the same valve, reused instead of new replicates.
+    for the candidate fits (the result does not depend on it).
     """
     t0 = time.perf_counter()
     op = np.asarray(op, dtype=np.float64)
@@ -296,22 +310,19 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
     say = progress or (lambda msg: None)
     say('fitting the plain model')
     prepared = prepare(op, mv, fit_segments, sample_time)
-    prepared, fits = settle(prepared, fit_many([prepared], jobs, say)[0])
+    counted = (len(EFFECTS), len(EFFECTS) * (1 + reps))
+    prepared, fits = settle(prepared, fit_many([prepared], jobs, say, 0, (0, counted[1]))[0])
     base, problem, ctx, plain_sse = prepared
     n_used = problem.n
     # The bootstrap's effect-free replicates of the plain model as settled, refitted
     # from scratch like the record; every candidate on every one of them, side by
     # side on ``jobs`` threads.
-    if calibrated is not None:
-        reps = 0
     ys = replicates(op, mv, fit_segments, base, plain_sse, n_used, reps, seed)
     records = [prepare(op, y, fit_segments, sample_time) for y in ys]
-    settled = [settle(r, f) for r, f in zip(records, fit_many(records, jobs, say, reps))]
+    settled = [settle(r, f) for r, f in zip(records, fit_many(records, jobs, say, reps,
+                                                              counted))]
     stats = {f.effect: lr(n_used, plain_sse, f.sse) for f in fits}
-    if calibrated is None:
-        worst, acfs = calibrate(op, fit_segments, [(y, r, f) for y, (r, f) in zip(ys, settled)])
-    else:
-        worst, acfs = dict(calibrated[0]), list(calibrated[1])
+    worst, acfs = calibrate(op, fit_segments, [(y, r, f) for y, (r, f) in zip(ys, settled)])
     thresholds = {e.eid: max(CHI2_999[len(e.names)], MARGIN * worst[e.eid]) for e in EFFECTS}
 
     fit_mask, hold_mask = scored_masks(segments, n, n_fit)
@@ -388,8 +399,7 @@ def explain(t, op, mv, segments, sample_time, holdout=HOLDOUT, reps=BOOTSTRAP, s
             'mse_fit': masked_mse(mv_explained, mv, fit_mask),
             'mse_holdout': masked_mse(mv_explained, mv, hold_mask),
             'residual_acf1': round(acf, 4),
-            # Reused replicates (``calibrated``) count as what they were: their acf1 list.
-            'bootstrap': {'replicates': len(acfs), 'reused': calibrated is not None,
+            'bootstrap': {'replicates': len(acfs),
                           'largest_lr': {k: round(v, 3) for k, v in worst.items()},
                           'acf1': [round(a, 4) for a in acfs], 'margin': MARGIN}},
         'candidates': sorted(candidates, key=lambda c: -c['score']),

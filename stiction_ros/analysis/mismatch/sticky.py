@@ -84,9 +84,10 @@ def explain_sticky(t, op, mv, segments, sample_time, holdout, reps, seed, say, j
     op_c = ins.shift(op, ins.split_delay(p['delay'])[0], segments)
     mv_c = (mv - p['offset']) / (p['gain'] or 1.0)
     plain, plain_arrays = report['baseline'], arrays
+    # Fresh replicates: with the stage undone the plain fit's residual is smaller, and
+    # replicates as noisy as the first search's misfit set thresholds too low for it.
     report, arrays = fx.explain(t, op_c, mv_c, segments, sample_time, holdout=holdout,
-                                seed=seed, progress=say, jobs=jobs,
-                                calibrated=(worst, m['bootstrap']['acf1']))
+                                reps=reps, seed=seed, progress=say, jobs=jobs)
     report['chain_candidates'] = _summaries(cands, sample_time)
     report['chain_kept'] = {'stages': list(best['stages']), 'score': best['score']}
     _back_to_reading(report, arrays, op, mv, p, plain, plain_arrays)
