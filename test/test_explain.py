@@ -14,8 +14,8 @@ from stiction_ros.analysis.mismatch.fit import START_SAMPLES
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.models import create
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
-from stiction_ros.sim.loop_config import resolve_loop
 from stiction_ros.sim.concealed_cases import concealed_case, SIZES
+from stiction_ros.sim.loop_config import resolve_loop
 
 
 def op_walk(n=6000, seed=0):
@@ -296,7 +296,7 @@ def test_he_model_is_kano_with_a_stribeck_threshold_of_j_per_sample():
 
 
 def trial_loop(model, S, J, seed):
-    """A PI loop with set-point and load steps and slow OP, of the kind a trial used."""
+    """Return a PI loop with set-point and load steps and slow OP, as a trial used."""
     doc = {'name': 'trial', 'sample_time': 1.0, 'duration': 3600.0,
            'plant': {'num': [2.0], 'den': [25.0, 1.0], 'delay': 3.0, 'mv0': 50.0, 'pv0': 0.0,
                      'disturbance_steps': [[420.0, 5.0], [1150.0, -7.0], [1900.0, 4.0],

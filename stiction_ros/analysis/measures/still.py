@@ -41,7 +41,7 @@ class Still:
     def sentence(self) -> str:
         """Return what it means, in words."""
         how = (f'MV moved only {self.mv_spread:.2g} % (noise {self.noise:.2g} %), under '
-               f'{100 * FOLLOW_SHARE:.0f} % of OP\'s travel and not with it, a drift of the '
+               f"{100 * FOLLOW_SHARE:.0f} % of OP's travel and not with it, a drift of the "
                'reading rather than a response,' if self.drifted else
                f'MV stayed within its noise (it spread {self.mv_spread:.2g} %, noise '
                f'{self.noise:.2g} %)')

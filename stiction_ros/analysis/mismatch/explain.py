@@ -29,9 +29,9 @@ from stiction_ros._jit import load_numba
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.mismatch import locate
 from stiction_ros.analysis.mismatch.effects import BY_ID, Context, EFFECTS
-from stiction_ros.analysis.mismatch.instrument import quantum
 from stiction_ros.analysis.mismatch.fit import as_plain, effect_errors, EffectsProblem, \
     fit_effect, plain_at_fits, plain_in_window, RESOLUTION, start_positions
+from stiction_ros.analysis.mismatch.instrument import quantum
 from stiction_ros.kernels import kano_effects as kk
 
 HOLDOUT = 0.3
@@ -50,7 +50,7 @@ NEGLIGIBLE_RMS = RESOLUTION
 # 95 % point of chi-square with one degree of freedom.
 CHI2_95_1 = 3.84
 HE_SENTENCE = (
-    ' With the threshold at J = {J:.3g} % per sample it fits as well: this is He et al.\'s '
+    " With the threshold at J = {J:.3g} % per sample it fits as well: this is He et al.'s "
     '(2007) model, whose valve sticks again each sample the input moves less than J; a '
     'Kano valve sticks only when OP stops or reverses.')
 

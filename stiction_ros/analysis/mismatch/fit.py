@@ -225,7 +225,7 @@ def as_plain(fit, S, J, sse):
     """Return ``fit`` set back to the plain model at (S, J) when it is no better than that."""
     if fit.sse < sse:
         return fit
-    return CandidateFit(fit.effect, {k: 0.0 for k in fit.params}, float(S), float(J),
+    return CandidateFit(fit.effect, dict.fromkeys(fit.params, 0.0), float(S), float(J),
                         float(sse), fit.n, kk.plain_params(), fit.evaluations)
 
 
