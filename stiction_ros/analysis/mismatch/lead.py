@@ -11,9 +11,11 @@ or the stiction chain where that fits better) beats the one fitted to OP as
 recorded on the fitted part and held out; the chain's own dead time then
 places the lead to a fraction of a sample.  A screen comes first: the chain
 as fitted, a sample ahead, must fit better, so a record without a lead costs
-no fit (unless the chain has a lag, which takes in a lead and fails the screen).
+no fit (a chain with a lag is also tried with that lag a sample longer: a lag
+fitted to an early reading takes in the lead).
 """
 
+import dataclasses
 from typing import Any, Callable
 
 import numpy as np
@@ -50,12 +52,16 @@ def find_lead(rec: Any, full: ins.ChainFit, sticky: ins.ChainFit,
     if ref.params['delay'] >= MIN_LEAD:
         return None
     # A lag fitted to an early reading is a shorter one (it takes in the lead), so the
-    # same chain a sample ahead lags too little and fits worse: only a refit (the search's
-    # first step) can show that lead, at the cost of one fit on records with a lag.
-    lagged = ref.params['tau'] + ref.params['tau2'] >= MIN_LEAD
-    ahead = rec.read(ins.chain_output(ins.shift(rec.op, -1.0, rec.segments), rec.mv,
-                                      rec.segments, ref)) - rec.mv
-    if not lagged and not np.nansum(ahead[f] ** 2) < np.nansum(e0[f] ** 2):
+    # same chain a sample ahead lags too little and fits worse: its lag is lengthened by
+    # the sample it is read ahead (still no fit).
+    longer = 'tau' if ref.params['tau'] >= ref.params['tau2'] else 'tau2'
+    screens = [ref]
+    if ref.params[longer] >= MIN_LEAD:
+        screens.append(dataclasses.replace(
+            ref, params={**ref.params, longer: ref.params[longer] + 1.0}))
+    op_1 = ins.shift(rec.op, -1.0, rec.segments)
+    if not any(np.nansum((rec.read(ins.chain_output(op_1, rec.mv, rec.segments, c))
+                          - rec.mv)[f] ** 2) < np.nansum(e0[f] ** 2) for c in screens):
         return None
     tried: dict[int, dict] = {}
 
