@@ -142,7 +142,7 @@ def _best(scores, s_ax, j_ax, keep):
 
 def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
     """Return the :class:`CandidateFit` of ``effect`` (never worse than the plain fit)."""
-    half_s, half_j = _window(S0)
+    half_s = half_j = _half_window(S0)
     thetas = effect.grid(ctx)
     coarse = []
     for theta in thetas:
@@ -176,11 +176,10 @@ def fit_effect(problem, effect, ctx, S0, J0, plain_sse, keep=3):
                         problem.evaluations)
 
 
-def _window(S0):
-    # The (S, J) window every fit searches around the plain fit: S within a third of
-    # itself (0.3 % at least), J anywhere from 0 to the window's top.
-    half = max(0.35 * S0, 0.3)
-    return half, half
+def _half_window(S0):
+    # The (S, J) window every fit searches around the plain fit: S and J within a third
+    # of S (0.3 % at least); the coarse grid's J runs from 0 to the window's top.
+    return max(0.35 * S0, 0.3)
 
 
 def plain_in_window(problem, S0, J0, plain_sse):
@@ -193,7 +192,7 @@ def plain_in_window(problem, S0, J0, plain_sse):
     then find that basin with itself at almost nothing and be named for the
     plain fit's miss, so the plain model gets the same search first.
     """
-    half_s, half_j = _window(S0)
+    half_s = half_j = _half_window(S0)
     p = kk.plain_params()
     sse, s, j = local_sj(problem, p, S0, J0, half_s, half_j, points=COARSE_POINTS, levels=1,
                          limit=plain_sse, j_max=S0 + half_s)

@@ -341,8 +341,7 @@ def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
             d, tau, before = best_key()
             if timed:
                 _refine_delay(at, best_key, tau, before, near)
-            d, tau, before = best_key()
-            tau = _refine_lag(at, tried, d, tau, before, tau_max)
+            _refine_lag(at, tried, *best_key(), tau_max)
     d, tau, before = best_key()
     near = tried[(d, tau, before)][1:3]
     if timed:
@@ -365,7 +364,7 @@ def fit_friction(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
 
 def _refine_lag(at, tried, d, tau, before, tau_max):
     """
-    Return the lag between 0.7 and 1.4 times ``tau`` that fits best at dead time ``d``.
+    Try lags between 0.7 and 1.4 times ``tau`` at dead time ``d`` (into ``tried``, by ``at``).
 
     The tries step the lag by 40 %, and a sticking valve read through a lag
     4 samples long fits as one of 3.5 or 5 only with its breakaways moved
@@ -373,12 +372,11 @@ def _refine_lag(at, tried, d, tau, before, tau_max):
     tries, so a bounded scalar search finds it.
     """
     if tau <= 0.0:
-        return tau
+        return
     near = tried[(d, tau, before)][1:3]
-    res = minimize_scalar(lambda x: at(d, float(x), before, near)[0],
-                          bounds=(0.7 * tau, min(1.4 * tau, tau_max)), method='bounded',
-                          options={'xatol': max(0.02 * tau, 0.02), 'maxiter': 10})
-    return float(res.x) if res.fun < tried[(d, tau, before)][0] else tau
+    minimize_scalar(lambda x: at(d, float(x), before, near)[0],
+                    bounds=(0.7 * tau, min(1.4 * tau, tau_max)), method='bounded',
+                    options={'xatol': max(0.02 * tau, 0.02), 'maxiter': 10})
 
 
 def _refine_delay(at, best_key, tau, before, near=None):
