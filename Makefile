@@ -1,6 +1,8 @@
 # Two commands do all set-up on a fresh machine:  make demo   and   make test
 # Every process started from here keeps DDS discovery on this machine.
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+# Fast DDS over UDP on the loopback: its shared-memory transport hung nodes now and then.
+export FASTDDS_BUILTIN_TRANSPORTS ?= UDPv4
 export PYTHONUNBUFFERED := 1
 
 VENV ?= .venv

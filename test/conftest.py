@@ -20,6 +20,9 @@ _WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
 if _WORKER.startswith('gw') and _WORKER[2:].isdigit():
     os.environ['ROS_DOMAIN_ID'] = str((int(os.environ['ROS_DOMAIN_ID']) + int(_WORKER[2:])) % 102)
 os.environ.setdefault('MPLBACKEND', 'Agg')
+# The loop launcher's choice for its nodes (cli/loop.py), for every node the tests start:
+# Fast DDS's shared-memory transport hung a node now and then under load.
+os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
 @pytest.fixture(scope='module')

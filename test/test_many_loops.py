@@ -90,6 +90,10 @@ def check_loops(prefix, cases, duration, tmp_path, probe):
         gave_up = {name: sum(map(int, re.findall(r'gave up at (\d+)', text)))
                    for name, text in logs.items()}
         r['gave_up'] = {name: count for name, count in gave_up.items() if count}
+        if errors[ns] is not None:
+            # The last lines each node wrote (a stalled node's stacks on SIGUSR1 among them).
+            r['tails'] = {name: [ln for ln in text.splitlines() if 'subscribed to' not in ln][-3:]
+                          for name, text in logs.items()}
         clock_log = logs.get('sim_clock', '')
         r['stalls'] = sum(map(int, re.findall(r'(\d+) stalls$', clock_log, re.M)))
         bag = tmp_path / case / 'bag'
