@@ -26,6 +26,7 @@ import contextlib
 import datetime
 import io
 import json
+import math
 import os
 from pathlib import Path
 import sys
@@ -139,6 +140,29 @@ def _num(x, fmt='.3f'):
     return '-' if x is None else format(x, fmt)
 
 
+def coverage(rows: list[dict]) -> dict:
+    """
+    Return ``{effect: (within, named)}``: named sizes within two stated errors of the truth.
+
+    A stated error holds the truth about 95 % of the time if it is honest; one
+    far under that says the error is too narrow (a calibration is compared by
+    its offset at OP 0, a rate limit by its rate in % per second).
+    """
+    out: dict = {}
+    for r in rows:
+        for e in r.get('found_detail') or ():
+            truth, unc = r['sizes'].get(e.get('id')), e.get('uncertainty')
+            if truth is None or unc is None or not math.isfinite(unc) or e.get('size') is None:
+                continue
+            if isinstance(truth, dict):
+                truth = truth.get('offset', truth.get('rate_pct_s'))
+            if not isinstance(truth, (int, float)):
+                continue
+            within, named = out.get(e['id'], (0, 0))
+            out[e['id']] = (within + (abs(e['size'] - truth) <= 2.0 * unc), named + 1)
+    return out
+
+
 def section(rows: list[dict], elapsed: float, jobs: int, per_case: int,
             seeds_from: int) -> str:
     """Return the markdown text to put between the markers, for the rows."""
@@ -195,6 +219,11 @@ def section(rows: list[dict], elapsed: float, jobs: int, per_case: int,
         lines.append(f'- Held-out MSE against the plain Kano model, runs that hide something: '
                      f'median {np.median(hidden):.3f} (best {min(hidden):.3f}, worst '
                      f'{max(hidden):.3f}).')
+    cov = coverage(rows)
+    if cov:
+        lines.append('- Named sizes within two stated standard errors of the hidden value '
+                     '(about 95 % if the errors are honest): ' + ', '.join(
+                         f'{k} {w}/{n}' for k, (w, n) in sorted(cov.items())) + '.')
     ex = [r['explain_s'] for r in rows if r.get('explain_s') is not None]
     if ex:
         lines.append(f'- `--explain` time per run: median {np.median(ex):.1f} s, max '

@@ -80,6 +80,36 @@ def test_heldout_test_sees_a_real_gain_and_none_between_equal_models():
     assert better['gain'] > 0.1 and better['p'] < 0.01
 
 
+def test_curvature_errors_are_the_least_squares_errors_of_a_correlated_line():
+    # A calibration read as offset + gain * OP with OP far from 0: offset and gain trade
+    # off, and the offset's error is many times the one it would have with the gain known.
+    rng = np.random.default_rng(3)
+    x = rng.uniform(40.0, 60.0, 400)
+    y = 1.0 + 0.97 * x + 0.2 * rng.standard_normal(400)
+    X = np.column_stack([np.ones_like(x), x])
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    r = y - X @ beta
+    sigma2 = float(r @ r) / len(y)
+
+    def sse(t):
+        e = y - X @ np.asarray(t)
+        return float(e @ e)
+
+    got = stats.curvature_errors(sse, beta, [0.01, 1e-3], sigma2)
+    naive = np.sqrt(sigma2 * np.diag(np.linalg.inv(X.T @ X)))
+    np.testing.assert_allclose(got, naive, rtol=1e-4)
+    alone = math.sqrt(sigma2 / len(y))          # the offset's error with the gain known
+    assert got[0] > 5 * alone
+
+
+def test_curvature_errors_fall_back_to_each_parameters_own_curvature_on_a_flat_direction():
+    def sse(t):
+        return 4.0 * (t[0] - 1.0) ** 2         # the second parameter changes nothing
+
+    got = stats.curvature_errors(sse, [1.0, 0.0], [1e-3, 1e-3], 2.0)
+    assert got[0] == pytest.approx(math.sqrt(2.0 * 2.0 / 8.0)) and math.isinf(got[1])
+
+
 def _explain(d, mv):
     n = len(mv)
     return decide.explain_record(d['t'], d['op'], mv, [(0, n)], 1.0, reps=1)[0]

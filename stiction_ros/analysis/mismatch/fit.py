@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from stiction_ros.analysis import fit_core
+from stiction_ros.analysis.mismatch.stats import curvature_errors
 from stiction_ros.kernels import kano_effects as kk
 
 # Finer than identify's default 0.01 %: on a noisy record a plain fit rounded to
@@ -232,22 +233,18 @@ def effect_errors(problem, effect, ctx, fit, rho=0.0) -> dict:
     """
     Return the standard error of each fitted effect parameter from the SSE's curvature.
 
-    S and J are held (a conditional error); the noise variance is inflated
-    by (1 + rho) / (1 - rho) for a residual of lag-1 autocorrelation ``rho``.
+    The effect's parameters are varied together (``stats.curvature_errors``);
+    S and J are held.  The noise variance is inflated by (1 + rho) / (1 - rho)
+    for a residual of lag-1 autocorrelation ``rho``.
     """
     sigma2 = fit.sse / fit.n * (1.0 + rho) / max(1.0 - rho, 0.05)
     theta = [fit.params[k] for k in effect.names]
-    out = {}
-    for i, name in enumerate(effect.names):
-        h = max(1e-3, 0.05 * abs(theta[i]))
-        sse = []
-        for x in (theta[i] - h, theta[i], theta[i] + h):
-            trial = list(theta)
-            trial[i] = x
-            sse.append(problem.sse(fit.S, fit.J, effect.vector(tuple(trial), ctx)))
-        curv = (sse[0] - 2.0 * sse[1] + sse[2]) / (h * h)
-        out[name] = math.sqrt(2.0 * sigma2 / curv) if curv > 0 else math.inf
-    return out
+
+    def sse(t):
+        return problem.sse(fit.S, fit.J, effect.vector(tuple(float(x) for x in t), ctx))
+
+    steps = [max(1e-3, 0.05 * abs(v)) for v in theta]
+    return dict(zip(effect.names, curvature_errors(sse, theta, steps, sigma2)))
 
 
 def _bisect(problem, effect, ctx, best, dim, axis, rounds=3):

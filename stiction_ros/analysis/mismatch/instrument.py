@@ -28,6 +28,7 @@ from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.identify import identify, plausible_box
 from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUTION, \
     start_positions
+from stiction_ros.analysis.mismatch.stats import curvature_errors
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.kernels.chain import limited
 
@@ -392,30 +393,36 @@ def standard_errors(op: np.ndarray, mv: np.ndarray, segments, fit: ChainFit,
     """
     Return the standard error of each free stage from the SSE's curvature.
 
-    Each stage is varied alone with the others held (a conditional error);
-    the noise variance is inflated by (1 + rho) / (1 - rho) for a residual of
-    lag-1 autocorrelation ``rho``, which a least-squares error ignores.
+    The stages are varied together, and with a stiction chain its S and J
+    too (``stats.curvature_errors``), so a stage that trades off against
+    another, or against the friction, gets its marginal error.  The noise
+    variance is inflated by (1 + rho) / (1 - rho) for a residual of lag-1
+    autocorrelation ``rho``, which a least-squares error ignores.
     """
     idx = indices(segments)
     sigma2 = fit.mse * (1.0 + rho) / max(1.0 - rho, 0.05)
-    out = {}
-    for name in fit.free:
-        if name == 'travel':
-            continue
-        v = fit.params[name]
-        h = max(1e-3, 0.05 * abs(v)) if name in ('delay', 'tau', 'tau2', 'rate') else (
-            0.01 if name == 'offset' else 1e-3)
-        sse = []
-        for x in (v - h, v, v + h):
-            trial = ChainFit(fit.friction, {**fit.params, name: max(x, 0.0)
-                                            if name in ('delay', 'tau', 'tau2', 'rate')
-                                            else x},
-                             fit.S, fit.J, 0.0, fit.n, fit.free)
-            r = chain_output(op, mv, segments, trial)[idx] - mv[idx]
-            sse.append(float(r @ r))
-        curv = (sse[0] - 2.0 * sse[1] + sse[2]) / (h * h)
-        out[name] = math.sqrt(2.0 * sigma2 / curv) if curv > 0 else math.inf
-    return out
+    names = [name for name in fit.free if name != 'travel']
+    if not names:
+        return {}
+    positive = ('delay', 'tau', 'tau2', 'rate')
+    sj = fit.friction == 'stiction'
+
+    def sse(theta):
+        params = dict(fit.params)
+        for name, x in zip(names, theta):
+            params[name] = max(x, 0.0) if name in positive else x
+        S, J = (max(theta[-2], 0.0), max(theta[-1], 0.0)) if sj else (fit.S, fit.J)
+        trial = ChainFit(fit.friction, params, S, J, 0.0, fit.n, fit.free)
+        r = chain_output(op, mv, segments, trial)[idx] - mv[idx]
+        return float(r @ r)
+
+    theta = [fit.params[name] for name in names]
+    steps = [max(1e-3, 0.05 * abs(v)) if name in positive else (
+        0.01 if name == 'offset' else 1e-3) for name, v in zip(names, theta)]
+    if sj:
+        theta += [fit.S, fit.J]
+        steps += [max(0.01, 0.05 * fit.S), max(0.01, 0.05 * fit.J)]
+    return dict(zip(names, curvature_errors(sse, theta, steps, sigma2)))
 
 
 def quantum(mv: np.ndarray, idx: np.ndarray) -> float:

@@ -73,3 +73,49 @@ def earns(test: dict) -> bool:
     not get worse with it.
     """
     return test['lr'] > test['threshold'] and test.get('heldout_gain', 0.0) >= 0.0
+
+
+def curvature_errors(sse, theta, steps, sigma2: float) -> list:
+    """
+    Return each parameter's standard error from the joint curvature of ``sse`` at ``theta``.
+
+    ``sse(theta)`` is the residual sum of squares; its Hessian, by central
+    differences of ``steps``, is inverted whole, so a parameter that trades
+    off against another (a calibration's offset against its gain, a dead
+    time against a lag) gets the wider, marginal error that its correlation
+    implies, not the error it would have with the others known.  Where the
+    joint Hessian is not positive definite (a kink, a flat direction) each
+    parameter keeps its own curvature's error, and one with none gets inf.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    h = np.asarray(steps, dtype=np.float64)
+    k = len(theta)
+    f0 = sse(theta)
+    cache = {}
+
+    def at(*moves):
+        # moves: (index, sign) pairs; memoised, as the diagonal shares its points
+        key = tuple(sorted(moves))
+        if key not in cache:
+            t = theta.copy()
+            for i, s in key:
+                t[i] += s * h[i]
+            cache[key] = sse(t)
+        return cache[key]
+
+    hess = np.zeros((k, k))
+    for i in range(k):
+        hess[i, i] = (at((i, 1)) - 2.0 * f0 + at((i, -1))) / (h[i] * h[i])
+        for j in range(i):
+            hess[i, j] = hess[j, i] = (at((i, 1), (j, 1)) - at((i, 1), (j, -1))
+                                       - at((i, -1), (j, 1)) + at((i, -1), (j, -1))) / (
+                4.0 * h[i] * h[j])
+    # sse ~ f0 + d' H d / 2, and the noise variance sigma2: cov = 2 sigma2 H^-1
+    alone = [math.sqrt(2.0 * sigma2 / c) if c > 0 else math.inf for c in np.diag(hess)]
+    if k > 1 and np.all(np.isfinite(hess)) and np.all(np.diag(hess) > 0):
+        scale = 1.0 / np.sqrt(np.diag(hess))
+        corr = hess * np.outer(scale, scale)
+        if np.linalg.eigvalsh(corr).min() > 1e-9:
+            cov = 2.0 * sigma2 * np.linalg.inv(corr) * np.outer(scale, scale)
+            return [math.sqrt(max(v, 0.0)) for v in np.diag(cov)]
+    return alone
