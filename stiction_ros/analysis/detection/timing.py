@@ -51,6 +51,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from stiction_ros.kernels.lags import lag_from_rest
+
 __all__ = ['Alignment', 'alignment', 'HELD', 'LAG_RATIO', 'lag_profile', 'LAGS', 'law_profile',
            'law_r2', 'LEAD', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose',
            'propose_lag', 'realign', 'refine_lag', 'through_lag', 'UNDO_LAG', 'undo_lag']
@@ -181,15 +183,9 @@ def through_lag(x: np.ndarray, lag: float) -> np.ndarray:
     """
     if not lag > 0:
         raise ValueError(f'a lag needs a positive time constant, not {lag}')
-    x = np.asarray(x, dtype=np.float64)
-    a = float(np.exp(-1.0 / lag))
-    # A plain loop, not scipy.signal: the default analysis imports no scipy (test_dsp).
-    y = np.empty_like(x)
-    acc = x[0] if x.size else 0.0
-    for k, v in enumerate(x.tolist()):
-        acc = a * acc + (1.0 - a) * v
-        y[k] = acc
-    return y
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    # A compiled loop, not scipy.signal: the default analysis imports no scipy (test_dsp).
+    return lag_from_rest(x, float(np.exp(-1.0 / lag)))
 
 
 def undo_lag(y: np.ndarray, lag: float) -> np.ndarray:
@@ -214,20 +210,26 @@ def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int,
     NaN when fewer than ``MIN_ROWS`` rows with OP inside its range remain,
     or OP never changes there (or, with a lag, a row of OP or PV is missing).
     """
+    return _fit_shift(_law_rows(op, pv, sp, lag), shift)
+
+
+def _law_rows(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
+              lag: float) -> tuple | None:
+    """Return what the law is fitted on at any shift (None where it cannot be fitted)."""
     op = np.asarray(op, dtype=np.float64)
     pv = np.asarray(pv, dtype=np.float64)
     if op.size < MIN_ROWS + 2 or op.shape != pv.shape:
-        return float('nan')
+        return None
     sp = None if sp is None else np.broadcast_to(np.asarray(sp, np.float64), pv.shape)
     finite = np.isfinite(op)
     if not finite.any():
-        return float('nan')
+        return None
     # A gap (NaN) or either end of OP's range: not the law's rows.
     inside = finite & (op > np.min(op[finite])) & (op < np.max(op[finite]))
     if lag > 0:
         if not (finite.all() and np.isfinite(pv).all()
                 and (sp is None or np.isfinite(sp).all())):
-            return float('nan')
+            return None
         # A row at OP's limit stays in the lagged OP for a few time constants.
         out = np.flatnonzero(~inside)
         for j in range(1, int(np.ceil(3.0 * lag)) + 1):
@@ -238,6 +240,14 @@ def law_r2(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None, shift: int,
     d_op, d_e, e = np.diff(op), np.diff(e), e[1:]
     free = inside[1:] & inside[:-1]
     known = np.isfinite(d_e) & np.isfinite(e)
+    return d_op, d_e, e, free, known
+
+
+def _fit_shift(rows: tuple | None, shift: int) -> float:
+    """Return the law's R² on :func:`_law_rows`'s rows with PV ``shift`` rows later."""
+    if rows is None:
+        return float('nan')
+    d_op, d_e, e, free, known = rows
     n, k = len(d_op), int(shift)
     lo, hi = max(0, -k), min(n, n - k)
     if hi - lo < MIN_ROWS:
@@ -275,7 +285,8 @@ def propose(profiles: np.ndarray, min_r2: float = MIN_LAW_R2,
 
 def law_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
     """Return the law's R² at every shift ``-MAX_SHIFT`` .. ``MAX_SHIFT`` (NaN: not fitted)."""
-    return np.array([law_r2(op, pv, sp, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
+    rows = _law_rows(op, pv, sp, 0.0)
+    return np.array([_fit_shift(rows, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
 
 
 def lag_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
