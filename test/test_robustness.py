@@ -78,12 +78,14 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     from stiction_ros.analysis.detection import dataset, deadband_like
     from stiction_ros.cli.robustness import main
     from stiction_ros.study.robustness import CONDITIONS, run
-    seeds = range(3_600_000, 3_600_016)
+    # 8 seeds: 6 scored (one sticky), 2 that cannot be judged.
+    seeds = range(3_600_000, 3_600_008)
     study = run(seeds, jobs=1)
     acc = deadband_like.leave_out(deadband_like.mark(dataset.build(seeds, progress=False)))
     assert study.seed.tolist() == acc['seed'].tolist()
     assert study.label.tolist() == acc['y'].tolist()
-    assert len(study.label) + study.unscored == 16 and 0 < len(study.label) < 16
+    assert len(study.label) + study.unscored == 8 and 0 < len(study.label) < 8
+    assert 0 < study.label.sum() < len(study.label)
     assert [r['condition'] for r in study.rows] == [c[0] for c in CONDITIONS]
     for r in study.rows:
         assert r['tp'] + r['fn'] == int(study.label.sum())
@@ -92,7 +94,7 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     # A record has a refusal's reason exactly where it has no probability.
     np.testing.assert_array_equal(np.isnan(study.probability), study.refusal != '')
     md, js = tmp_path / 'r.md', tmp_path / 'r.json'
-    assert main(['--first-seed', '3600000', '--seeds', '6', '--jobs', '1',
+    assert main(['--first-seed', '3600000', '--seeds', '3', '--jobs', '1',
                  '--skew-seeds', '30', '--markdown', str(md), '--json', str(js)]) == 0
     text = md.read_text()
     assert all(f'| {c[0]} |' in text for c in CONDITIONS)
@@ -102,7 +104,7 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     assert len(lag['rows']) == len(GRID_R2) * len(GRID_RATIO)
     r2, ratio = lag['chosen']
     assert f'| **{r2}** | **{ratio}** |' in text
-    assert json.loads(js.read_text())['seeds'] == [3_600_000, 3_600_006]
+    assert json.loads(js.read_text())['seeds'] == [3_600_000, 3_600_003]
 
 
 def test_the_study_refuses_what_it_cannot_run(capsys):
