@@ -4,10 +4,12 @@ import json
 
 import numpy as np
 
-from stiction_ros.analysis.measures.still import still_valve
+from stiction_ros.analysis.measures.still import set_point_test, still_valve
 from stiction_ros.cli.analyze import main
 from stiction_ros.models import Kano
-from stiction_ros.sim.closed_loop import write_csv
+from stiction_ros.resources import config_file
+from stiction_ros.sim.closed_loop import simulate_loop, write_csv
+from stiction_ros.sim.loop_config import load_loop
 
 
 def _record(amplitude, S=4.0, J=1.0, n=3601, seed=3):
@@ -70,7 +72,9 @@ def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never
     assert st['detected'] is None and st['answer'] == 'cannot tell'
     assert st['cannot_tell'] == 'mv_still' and 'dead position reading' in st['reason']
     out = capsys.readouterr().out
-    assert 'stuck: cannot tell (the valve did not move' in out
+    assert 'stuck: cannot tell (MV did not move' in out
+    # Its set point never moved: PV cannot say which of the three it is.
+    assert 'set_point_test' not in st
     assert 'mismatch: cannot tell' in out
 
 
@@ -98,3 +102,66 @@ def test_a_reading_that_drifts_but_does_not_follow_op_is_still_and_a_sticky_one_
     assert still_valve(stuck['op'], _record(6.0)['mv'], whole) is None
     fifth = 50.0 + 0.2 * (stuck['op'] - 50.0) + 0.02 * np.random.default_rng(4).standard_normal(n)
     assert still_valve(stuck['op'], fifth, whole) is None
+
+
+# Set-point moves up and down, large against PV's noise (0.02): what lets PV say whether
+# the valve moved while its reading stood still.
+UP_DOWN = [[0.0, 0.0], [300.0, 4.0], [900.0, -2.0], [1500.0, 3.2], [2200.0, 0.0]]
+
+
+def _loop(S, steps=UP_DOWN, dead_reading=False):
+    # The chapter's concentration loop under its PI controller, with Kano's valve.
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'valve': {'model': 'kano', 'S': S, 'J': 0.0},
+        'controller': {'mode': 'closed_loop', 'Kc': 0.2, 'Ti': 10.0,
+                       'setpoint': {'type': 'steps', 'steps': steps}},
+        'noise': {'pv_std': 0.02, 'mv_std': 0.1, 'seed': 1}, 'duration': 3000.0})
+    data = dict(simulate_loop(cfg))
+    if dead_reading:
+        # The valve moves; its position transmitter reads one value and noise.
+        rng = np.random.default_rng(0)
+        data['mv'] = 50.0 + 0.1 * rng.standard_normal(len(data['mv']))
+    return data
+
+
+def test_a_loop_whose_valve_moves_follows_its_set_point_and_one_whose_valve_is_stuck_does_not():
+    whole = [(0, 3001)]
+    moving = _loop(0.0)
+    found = set_point_test(moving['pv'], moving['sp'], whole)
+    # Integral action: PV settles on each set point, gain 1, behind the loop's lag.
+    assert found.follows and found.r2 > 0.9 and abs(found.gain - 1.0) < 0.1
+    assert found.lag_rows > 0
+    stuck = _loop(100.0)                  # S = 100 %: the valve never breaks away
+    assert still_valve(stuck['op'], stuck['mv'], whole) is not None
+    found = set_point_test(stuck['pv'], stuck['sp'], whole)
+    assert not found.follows and found.r2 < 0.01
+    # A set point that moved one way only, or not at all, cannot tell.
+    for steps in ([[0.0, 0.0], [300.0, 4.0]], [[0.0, 0.0]]):
+        one_way = _loop(0.0, steps)
+        assert set_point_test(one_way['pv'], one_way['sp'], whole) is None
+    # Nor can a record with a gap in PV (a lag cannot run across it).
+    pv = moving['pv'].copy()
+    pv[100] = np.nan
+    assert set_point_test(pv, moving['sp'], [(0, 3001)]) is None
+
+
+def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, capsys):
+    dead, stuck = tmp_path / 'dead.csv', tmp_path / 'stuck.csv'
+    write_csv(dead, _loop(0.0, dead_reading=True))
+    write_csv(stuck, _loop(100.0))
+    reports = {}
+    for path in (dead, stuck):
+        out = tmp_path / f'{path.stem}.json'
+        assert main([str(path), '--explain', '--quiet', '--json', str(out)]) == 0
+        reports[path.stem] = json.loads(out.read_text())
+    st = reports['dead']['stiction']
+    assert st['answer'] == 'cannot tell' and st['cannot_tell'] == 'mv_dead'
+    assert st['set_point_test']['follows'] and "MV's reading is dead" in st['reason']
+    assert reports['dead']['mismatch']['reason'] == 'mv_dead'
+    st = reports['stuck']['stiction']
+    assert st['answer'] == 'cannot tell' and st['cannot_tell'] == 'mv_still'
+    assert st['set_point_test']['follows'] is False
+    assert 'the reading is not dead' in st['reason']
+    assert reports['stuck']['mismatch']['reason'] == 'mv_still'
+    out = capsys.readouterr().out
+    assert 'dead: cannot tell (MV did not move' in out and 'From PV:' in out

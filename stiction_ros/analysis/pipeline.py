@@ -19,10 +19,10 @@ from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
-from stiction_ros.analysis.measures.still import Still, still_valve
+from stiction_ros.analysis.measures.still import set_point_test, still_valve
 from stiction_ros.analysis.oscillation import detect_oscillation, MIN_PERIOD_SAMPLES
 from stiction_ros.analysis.record import Record, runs
-from stiction_ros.analysis.verdict import ANSWER, combine
+from stiction_ros.analysis.verdict import combine, refuse_still
 
 MODEL_CHOICES = ('kano', 'choudhury', 'both')
 LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
@@ -409,27 +409,14 @@ def analyze(record: Record, options: Options | None = None,
             lower = (f'{still.sentence()}; the fitted S and its range are where the fit '
                      'stopped, not a measured size')
             caution = f'{lower}; {caution}' if caution else lower
-            refuse_still(report['stiction'], still)
+            sp_test = (set_point_test(record.signals['pv'], record.signals['sp'],
+                                      record.valve_segments(min_samples=2))
+                       if record.has('pv') and record.has('sp') else None)
+            refuse_still(report['stiction'], still, sp_test, record.sample_time)
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes
     return analysis
-
-
-def refuse_still(stiction: dict, still: Still) -> None:
-    """
-    Make the verdict of a valve that never moved ``cannot tell``, as ``--explain`` says.
-
-    A fit beats an ideal valve by far on such a record (MV = OP is wrong by all
-    of OP's travel), yet three causes leave MV still, and two are not friction:
-    a band wider than OP's travel, a valve held (no air, a handwheel), a dead
-    or frozen position reading.  MV tells none of them apart.
-    """
-    stiction.update(detected=None, answer=ANSWER[None], cannot_tell='mv_still',
-                    reason=(f'the valve did not move while OP travelled '
-                            f'{still.op_spread:.2g} %: a friction band wider than that '
-                            'travel, a valve held (no air, a handwheel) or a dead position '
-                            'reading; MV tells none of them apart, a valve travel test does'))
 
 
 def valve_sampling_caution(record: Record, sticks: bool) -> str:

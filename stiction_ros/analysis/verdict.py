@@ -15,6 +15,7 @@ healthy loops, see docs/ACCURACY.md).  The weights and the threshold are the one
 cross-validated accuracy on the real plant loops is in ``docs/ACCURACY.md``.
 """
 
+from stiction_ros.analysis.measures.still import SetPointTest, Still
 from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
 MIN_S = 0.2
@@ -114,3 +115,32 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
     if hammerstein is not None:
         out['hammerstein'] = hammerstein.to_json()
     return out
+
+
+def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None,
+                 sample_time: float) -> None:
+    """
+    Make the verdict of a valve that never moved ``cannot tell``, as ``--explain`` says.
+
+    A fit beats an ideal valve by far on such a record (MV = OP is wrong by all
+    of OP's travel), yet three causes leave MV still, and two are not friction:
+    a band wider than OP's travel, a valve held (no air, a handwheel), a dead
+    or frozen position reading.  MV tells none of them apart; PV can rule the
+    reading in or out where the set point moved (``sp_test``).
+    """
+    moved = f'MV did not move while OP travelled {still.op_spread:.2g} %'
+    if sp_test is None:
+        code, why = 'mv_still', (f'{moved}: a friction band wider than that travel, a valve '
+                                 'held (no air, a handwheel) or a dead position reading; MV '
+                                 'tells none of them apart, a valve travel test does')
+    elif sp_test.follows:
+        code, why = 'mv_dead', (f'{moved}, but {sp_test.sentence(sample_time)}; friction '
+                                'cannot be read from it (a copy of the record without its '
+                                'mv column is judged from OP and PV)')
+    else:
+        code, why = 'mv_still', (f'{moved}, and {sp_test.sentence(sample_time)}; a friction '
+                                 'band wider than that travel or a valve held (no air, a '
+                                 'handwheel): a valve travel test tells which')
+    stiction.update(detected=None, answer=ANSWER[None], cannot_tell=code, reason=why)
+    if sp_test is not None:
+        stiction['set_point_test'] = sp_test.to_json()

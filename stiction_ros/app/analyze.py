@@ -399,9 +399,13 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
     if still is not None:
         # A fit to a valve that never moved reads MV's noise: a calibration of gain 0 or a
         # dead time would be named with full confidence.
+        # PV may have ruled the dead reading in or out (the verdict's set-point test).
+        st = analysis.report['stiction']
+        pv_says = f' From PV: {st["reason"]}.' if 'set_point_test' in st else ''
         analysis.report['mismatch'] = {
-            'effect': 'cannot_tell', 'effects': [], 'friction': None, 'reason': 'mv_still',
-            'explanation': f'Cannot explain a mismatch: {still.sentence()}.'}
+            'effect': 'cannot_tell', 'effects': [], 'friction': None,
+            'reason': st.get('cannot_tell', 'mv_still'),
+            'explanation': f'Cannot explain a mismatch: {still.sentence()}.{pv_says}'}
         return
     from stiction_ros.analysis.mismatch.decide import explain_record
     jobs = options.jobs if options.jobs is not None else default_jobs()
