@@ -124,25 +124,31 @@ def _loop(S, steps=UP_DOWN, dead_reading=False):
     return data
 
 
-def test_a_loop_whose_valve_moves_follows_its_set_point_and_one_whose_valve_is_stuck_does_not():
+def test_a_loop_whose_valve_moves_settles_on_each_set_point_and_a_stuck_one_does_not():
     whole = [(0, 3001)]
     moving = _loop(0.0)
     found = set_point_test(moving['pv'], moving['sp'], whole)
-    # Integral action: PV settles on each set point, gain 1, behind the loop's lag.
-    assert found.follows and found.r2 > 0.9 and abs(found.gain - 1.0) < 0.1
-    assert found.lag_rows > 0
+    # Integral action: PV settles on each new set point, up or down.
+    assert found.follows and found.steps == (4.0, -6.0, 5.2, -3.2)
+    assert all(abs(x - 1.0) < 0.05 for x in found.shares)
     stuck = _loop(100.0)                  # S = 100 %: the valve never breaks away
     assert still_valve(stuck['op'], stuck['mv'], whole) is not None
     found = set_point_test(stuck['pv'], stuck['sp'], whole)
-    assert not found.follows and found.r2 < 0.01
+    assert not found.follows and all(abs(x) < 0.05 for x in found.shares)
     # A set point that moved one way only, or not at all, cannot tell.
     for steps in ([[0.0, 0.0], [300.0, 4.0]], [[0.0, 0.0]]):
         one_way = _loop(0.0, steps)
         assert set_point_test(one_way['pv'], one_way['sp'], whole) is None
-    # Nor can a record with a gap in PV (a lag cannot run across it).
+    # Nor can steps that disagree: a load that moved PV at one step only.
+    pv = stuck['pv'].copy()
+    pv[1500:] += 5.2
+    assert set_point_test(pv, stuck['sp'], whole) is None
+    # Only the longest stretch between gaps is read (its steps settle within it).
     pv = moving['pv'].copy()
-    pv[100] = np.nan
-    assert set_point_test(pv, moving['sp'], [(0, 3001)]) is None
+    pv[2000] = np.nan
+    found = set_point_test(pv, moving['sp'], [(0, 2000), (2001, 3001)])
+    assert found.follows and found.steps == (4.0, -6.0, 5.2)
+    assert set_point_test(pv, moving['sp'], whole) is None       # NaN inside: not read
 
 
 def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, capsys):
@@ -165,3 +171,16 @@ def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, caps
     assert reports['stuck']['mismatch']['reason'] == 'mv_still'
     out = capsys.readouterr().out
     assert 'dead: cannot tell (MV did not move' in out and 'From PV:' in out
+
+
+def test_the_dead_reading_check_runs_both_cases_of_a_plain_loop_and_skips_the_others():
+    from bench.dead_reading_check import one
+    from stiction_ros.sim.corpus import draw_scenario
+    plain = next(s for s in range(6_700_000, 6_700_050)
+                 if draw_scenario(s).valve == 'linear' and not draw_scenario(s).look_alike)
+    rows = one(plain)
+    assert [r[1] for r in rows] == ['dead reading', 'stuck valve']
+    # Where it answers, it answers right; a still-reading check comes first.
+    assert all(r[3] in (None, True) and (r[2] or r[3] is None) for r in rows)
+    sticky = next(s for s in range(6_700_000, 6_700_050) if draw_scenario(s).valve != 'linear')
+    assert one(sticky) == []

@@ -412,7 +412,7 @@ def analyze(record: Record, options: Options | None = None,
             sp_test = (set_point_test(record.signals['pv'], record.signals['sp'],
                                       record.valve_segments(min_samples=2))
                        if record.has('pv') and record.has('sp') else None)
-            refuse_still(report['stiction'], still, sp_test, record.sample_time)
+            refuse_still(report['stiction'], still, sp_test)
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes

@@ -117,8 +117,7 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
     return out
 
 
-def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None,
-                 sample_time: float) -> None:
+def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None) -> None:
     """
     Make the verdict of a valve that never moved ``cannot tell``, as ``--explain`` says.
 
@@ -134,11 +133,11 @@ def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None,
                                  'held (no air, a handwheel) or a dead position reading; MV '
                                  'tells none of them apart, a valve travel test does')
     elif sp_test.follows:
-        code, why = 'mv_dead', (f'{moved}, but {sp_test.sentence(sample_time)}; friction '
+        code, why = 'mv_dead', (f'{moved}, but {sp_test.sentence()}; friction '
                                 'cannot be read from it (a copy of the record without its '
                                 'mv column is judged from OP and PV)')
     else:
-        code, why = 'mv_still', (f'{moved}, and {sp_test.sentence(sample_time)}; a friction '
+        code, why = 'mv_still', (f'{moved}, and {sp_test.sentence()}; a friction '
                                  'band wider than that travel or a valve held (no air, a '
                                  'handwheel): a valve travel test tells which')
     stiction.update(detected=None, answer=ANSWER[None], cannot_tell=code, reason=why)

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stiction_ros.kernels.lags import lag_from_rest
-
 # MV's spread (1st to 99th percentile) must pass this many noise widths to count as
 # motion: Gaussian noise alone spans about 4.7 of them, so 8 leaves a margin.
 MOVED = 8.0
@@ -99,80 +97,87 @@ def still_valve(op: np.ndarray, mv: np.ndarray, segments) -> Still | None:
     return Still(mv_spread, op_spread, noise)
 
 
-# Whether the loop controlled PV while MV read still: PV against SP's moves through
-# a closed-loop lag of each of these rows.  A loop that controls PV follows its set
-# point at a gain near 1 (integral action); one whose valve never moved does not.
-CLOSED_LOOP_LAGS = (0.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
-TRACKS_R2 = 0.5
-TRACK_GAIN = (0.5, 1.5)
-IGNORES_R2 = 0.1
+# Whether the loop controlled PV while MV read still, read at the set point's steps:
+# PV's median over the ``SETTLE_ROWS`` before a step against its median over the last
+# ``SETTLE_ROWS`` before the next step, as a share of the step.  A loop that controls PV
+# settles on each new set point (integral action: a share near 1); one whose valve
+# never moved does not answer at all (near 0).  Steps must go both ways, and every
+# step must agree, so that a load that moved PV by chance at one step cannot decide.
+SETTLE_ROWS = 10
+TRACK_SHARE = (0.5, 1.5)
+IGNORE_SHARE = 0.3
 
 
 @dataclass(frozen=True)
 class SetPointTest:
-    """How PV answered SP's moves (both ways) in a record whose MV read still."""
+    """How PV answered the set point's steps (both ways) in a record whose MV read still."""
 
     follows: bool
-    r2: float
-    gain: float
-    lag_rows: float
+    steps: tuple[float, ...]        # each step's size (PV units)
+    shares: tuple[float, ...]       # PV's settled change over each step
 
-    def sentence(self, sample_time: float) -> str:
+    def sentence(self) -> str:
         """Return what it means, in words."""
+        shares = ', '.join(f'{x:.2f}' for x in self.shares)
         if self.follows:
-            lag = (f' through a lag of {self.lag_rows * sample_time:.3g} s' if self.lag_rows
-                   else '')
-            return (f"PV followed the set point's moves up and down (R² {self.r2:.2f}, gain "
-                    f'{self.gain:.2f}{lag}): the loop controlled PV, so the valve moved, and '
-                    "MV's reading is dead or frozen")
-        return (f"PV did not follow the set point's moves up and down either (R² "
-                f'{self.r2:.2g}), so the valve did not move and the reading is not dead')
+            return (f"PV settled on each of the set point's {len(self.steps)} steps, up and "
+                    f'down (its change over each a share {shares} of the step): the loop '
+                    "controlled PV, so the valve moved and MV's reading is dead or frozen")
+        return (f"PV did not answer any of the set point's {len(self.steps)} steps, up and "
+                f'down (its change over each a share {shares} of the step), so the valve did '
+                'not move and the reading is not dead')
 
     def to_json(self) -> dict:
         """Return the test as JSON types."""
-        return {'follows': self.follows, 'r2': round(self.r2, 4),
-                'gain': round(self.gain, 4), 'lag_rows': self.lag_rows}
-
-
-def _spread(v: np.ndarray) -> float:
-    return float(np.subtract(*np.percentile(v, [99, 1])))
+        return {'follows': self.follows, 'steps': [round(h, 6) for h in self.steps],
+                'shares': [round(x, 4) for x in self.shares]}
 
 
 def set_point_test(pv: np.ndarray, sp: np.ndarray, segments) -> SetPointTest | None:
     """
-    Return how PV answered SP's moves on the longest segment, or None when it cannot tell.
+    Return how PV answered SP's steps on the longest segment, or None when it cannot tell.
 
-    SP must rise and fall by ``MOVED`` noise widths of PV (a single step
-    could match a drift by chance).  PV follows: R² of PV on SP through the
-    best lag of ``CLOSED_LOOP_LAGS`` at least ``TRACKS_R2``, at a gain inside
-    ``TRACK_GAIN``.  PV ignores: R² under ``IGNORES_R2`` while SP spread at
-    least as far as PV (so that no load can have hidden a response).
+    A step is a change of SP by over ``MOVED`` noise widths of PV from one
+    row to the next (changes closer than ``SETTLE_ROWS`` are one step); it
+    is read when ``SETTLE_ROWS`` rows precede it and twice that follow it
+    before the next.  Follows: every step's share inside ``TRACK_SHARE``;
+    ignores: every share under ``IGNORE_SHARE`` in size; both need steps up
+    and down.  A set point that ramps, moves one way only or never settles
+    long enough cannot tell.
     """
-    segments = [(a, b) for a, b in segments if b - a > 10]
+    segments = [(a, b) for a, b in segments if b - a > 3 * SETTLE_ROWS]
     if not segments:
         return None
     a, b = max(segments, key=lambda s: s[1] - s[0])
     y = np.asarray(pv[a:b], dtype=np.float64)
     r = np.asarray(sp[a:b], dtype=np.float64)
-    if not (np.isfinite(y).all() and np.isfinite(r).all()) or np.var(y) <= 0.0:
+    if not (np.isfinite(y).all() and np.isfinite(r).all()):
         return None
     dy = np.diff(y)
-    noise = 1.4826 * float(np.median(np.abs(dy - np.median(dy)))) / np.sqrt(2.0)
-    rise = float(np.max(r - np.minimum.accumulate(r)))
-    fall = float(np.max(np.maximum.accumulate(r) - r))
-    if min(rise, fall) <= MOVED * max(noise, 1e-12):
+    noise = max(1.4826 * float(np.median(np.abs(dy - np.median(dy)))) / np.sqrt(2.0), 1e-12)
+    moves = np.flatnonzero(np.abs(np.diff(r)) > MOVED * noise) + 1
+    events: list[list[int]] = []
+    for m in moves.tolist():
+        if events and m - events[-1][1] <= SETTLE_ROWS:
+            events[-1][1] = m
+        else:
+            events.append([m, m])
+    starts = [0] + [e[0] for e in events] + [len(y)]
+    steps, shares = [], []
+    for i, (first, last) in enumerate(events):
+        if first - starts[i] < SETTLE_ROWS or starts[i + 2] - last < 2 * SETTLE_ROWS:
+            continue
+        h = float(r[last] - r[first - 1])
+        if abs(h) <= MOVED * noise:
+            continue
+        before = np.median(y[first - SETTLE_ROWS:first])
+        after = np.median(y[starts[i + 2] - SETTLE_ROWS:starts[i + 2]])
+        steps.append(h)
+        shares.append(float((after - before) / h))
+    if not (any(h > 0 for h in steps) and any(h < 0 for h in steps)):
         return None
-    best = (-np.inf, 0.0, 0.0)
-    ones = np.ones(len(y))
-    for lag in CLOSED_LOOP_LAGS:
-        x = r if lag == 0.0 else lag_from_rest(np.ascontiguousarray(r), float(np.exp(-1.0 / lag)))
-        coef, *_ = np.linalg.lstsq(np.column_stack([x, ones]), y, rcond=None)
-        r2 = 1.0 - float(np.var(y - coef[0] * x - coef[1])) / float(np.var(y))
-        if r2 > best[0]:
-            best = (r2, float(coef[0]), lag)
-    r2, gain, lag = best
-    if r2 >= TRACKS_R2 and TRACK_GAIN[0] <= gain <= TRACK_GAIN[1]:
-        return SetPointTest(True, r2, gain, lag)
-    if r2 < IGNORES_R2 and _spread(r) >= _spread(y):
-        return SetPointTest(False, max(r2, 0.0), gain, lag)
+    if all(TRACK_SHARE[0] <= x <= TRACK_SHARE[1] for x in shares):
+        return SetPointTest(True, tuple(steps), tuple(shares))
+    if all(abs(x) < IGNORE_SHARE for x in shares):
+        return SetPointTest(False, tuple(steps), tuple(shares))
     return None
