@@ -158,8 +158,12 @@ def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, caps
     reports = {}
     for path in (dead, stuck):
         out = tmp_path / f'{path.stem}.json'
-        assert main([str(path), '--explain', '--quiet', '--json', str(out)]) == 0
+        assert main([str(path), '--explain', '--quiet', '--json', str(out),
+                     '--html', str(tmp_path / f'{path.stem}.html')]) == 0
         reports[path.stem] = json.loads(out.read_text())
+    # The page does not show the fits' score as a strength of friction.
+    page = (tmp_path / 'dead.html').read_text()
+    assert 'cannot tell &mdash; MV never moved, so the fits cannot decide' in page
     st = reports['dead']['stiction']
     assert st['answer'] == 'cannot tell' and st['cannot_tell'] == 'mv_dead'
     assert st['set_point_test']['follows'] and "MV's reading is dead" in st['reason']

@@ -69,7 +69,12 @@ def _verdict(report: dict) -> list:
     st = report.get('stiction', {})
     verdict = ('STICTION DETECTED' if st.get('detected')
                else 'no stiction detected' if st.get('detected') is False else 'cannot tell')
-    if report.get('fits'):
+    if report.get('fits') and st.get('cannot_tell'):
+        # The fits' score then measures how far OP travelled from a still MV, not friction.
+        strength = (f'MV never moved, so the fits cannot decide (their score, '
+                    f'{num(st.get("score"), 3)}, measures OP&rsquo;s travel, not friction)')
+        how = ''
+    elif report.get('fits'):
         strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
         how = (f'With the valve position (MV) the fits decide: stiction when the 95 % range '
                f'of the best model&rsquo;s S starts at or above {num(MIN_S)} % and its MSE is '
