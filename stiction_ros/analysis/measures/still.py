@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stiction_ros.analysis.detection.resolve import robust_noise
+
 # MV's spread (1st to 99th percentile) must pass this many noise widths to count as
 # motion: Gaussian noise alone spans about 4.7 of them, so 8 leaves a margin.
 MOVED = 8.0
@@ -153,8 +155,7 @@ def set_point_test(pv: np.ndarray, sp: np.ndarray, segments) -> SetPointTest | N
     r = np.asarray(sp[a:b], dtype=np.float64)
     if not (np.isfinite(y).all() and np.isfinite(r).all()):
         return None
-    dy = np.diff(y)
-    noise = max(1.4826 * float(np.median(np.abs(dy - np.median(dy)))) / np.sqrt(2.0), 1e-12)
+    noise = max(robust_noise(y), 1e-12)
     moves = np.flatnonzero(np.abs(np.diff(r)) > MOVED * noise) + 1
     events: list[list[int]] = []
     for m in moves.tolist():
