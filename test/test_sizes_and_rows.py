@@ -191,7 +191,7 @@ def test_a_given_size_gets_no_caution_and_no_invented_range(sticky_loop, tmp_pat
 
 def test_without_stiction_the_caution_says_a_band_may_be_missed():
     from types import SimpleNamespace
-    from stiction_ros.analysis.pipeline import sampling_caution
+    from stiction_ros.analysis.caution import sampling_caution
     rng = np.random.default_rng(1)
     op = 50 + rng.normal(0, 1, 600).cumsum() * 0.05
     held = {'op': op, 'pv': 0.8 * op + rng.normal(0, 0.05, 600), 'sp': np.full(600, 40.0)}

@@ -153,28 +153,40 @@ def test_a_loop_whose_valve_moves_settles_on_each_set_point_and_a_stuck_one_does
 
 def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, capsys):
     dead, stuck = tmp_path / 'dead.csv', tmp_path / 'stuck.csv'
-    write_csv(dead, _loop(0.0, dead_reading=True))
+    data = _loop(0.0, dead_reading=True)
+    write_csv(dead, data)
     write_csv(stuck, _loop(100.0))
+    # The same loop with no position reading at all: what OP and PV say.
+    blind = tmp_path / 'blind.csv'
+    write_csv(blind, data, columns=('t', 'sp', 'pv', 'op'))
     reports = {}
-    for path in (dead, stuck):
+    for path in (dead, stuck, blind):
         out = tmp_path / f'{path.stem}.json'
         assert main([str(path), '--explain', '--quiet', '--json', str(out),
                      '--html', str(tmp_path / f'{path.stem}.html')]) == 0
         reports[path.stem] = json.loads(out.read_text())
-    # The page does not show the fits' score as a strength of friction.
+    # A dead reading is set aside, kept, and the record judged as the blind copy is.
+    report = reports['dead']
+    dead_mv = report['mv_dead']
+    assert dead_mv['set_point_test']['follows'] and "MV's reading is dead" in dead_mv['reason']
+    assert report['fits'] == [] and dead_mv['fits'] and 'mv' in report['signals']
+    st, seen = report['stiction'], reports['blind']['stiction']
+    assert 'cannot_tell' not in st and st['answer'] == seen['answer']
+    assert st['probability'] == seen['probability'] is not None
+    assert report['mismatch']['reason'] == 'mv_dead'
     page = (tmp_path / 'dead.html').read_text()
-    assert 'cannot tell &mdash; MV never moved, so the fits cannot decide' in page
-    st = reports['dead']['stiction']
-    assert st['answer'] == 'cannot tell' and st['cannot_tell'] == 'mv_dead'
-    assert st['set_point_test']['follows'] and "MV's reading is dead" in st['reason']
-    assert reports['dead']['mismatch']['reason'] == 'mv_dead'
+    assert 'MV set aside, so OP and PV decide' in page and 'MV never moved' not in page
+    # A stuck valve: PV did not move either, and the fits' verdict is refused.
     st = reports['stuck']['stiction']
     assert st['answer'] == 'cannot tell' and st['cannot_tell'] == 'mv_still'
+    assert 'mv_dead' not in reports['stuck'] and reports['stuck']['fits']
     assert st['set_point_test']['follows'] is False
     assert 'the reading is not dead' in st['reason']
     assert reports['stuck']['mismatch']['reason'] == 'mv_still'
+    assert 'cannot tell &mdash; MV never moved, so the fits cannot decide' in (
+        tmp_path / 'stuck.html').read_text()
     out = capsys.readouterr().out
-    assert 'dead: cannot tell (MV did not move' in out and 'From PV:' in out
+    assert 'MV:       set aside: MV did not move' in out and 'From PV:' in out
 
 
 def test_the_dead_reading_check_runs_both_cases_of_a_plain_loop_and_skips_the_others():

@@ -12,15 +12,14 @@ import re
 
 import numpy as np
 
+from stiction_ros.analysis.caution import sampling_caution, valve_sampling_caution
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, probability_text
 from stiction_ros.analysis.detection.detect import answer_of, reason_of
-from stiction_ros.analysis.detection.resolve import alternating, MIN_SAMPLES
 from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
 from stiction_ros.analysis.measures.still import set_point_test, still_valve
-from stiction_ros.analysis.oscillation import detect_oscillation, MIN_PERIOD_SAMPLES
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine, refuse_still
 
@@ -401,7 +400,7 @@ def analyze(record: Record, options: Options | None = None,
     if fitted:
         sticks = bool(report['stiction']['detected'])
         caution = (sampling_caution(held, osc, record.sample_time, sticks) if win is not None
-                   else valve_sampling_caution(record, sticks))
+                   else valve_sampling_caution(record, sticks, MIN_SIGNATURE_SAMPLES))
         still = still_valve(record.signals['op'], record.signals['mv'],
                             record.valve_segments(min_samples=2))
         if still is not None:
@@ -413,58 +412,39 @@ def analyze(record: Record, options: Options | None = None,
                                       record.valve_segments(min_samples=2))
                        if record.has('pv') and record.has('sp') else None)
             refuse_still(report['stiction'], still, sp_test)
+            if report['stiction']['cannot_tell'] == 'mv_dead':
+                return without_dead_mv(analysis, options, progress, say_stage)
         if caution:
             report['stiction']['size_caution'] = caution
     report['notes'] = notes
     return analysis
 
 
-def valve_sampling_caution(record: Record, sticks: bool) -> str:
+def without_dead_mv(analysis: Analysis, options: Options,
+                    progress: Callable[[SearchProgress], object] | None,
+                    stage: Callable[[str, tuple], object]) -> Analysis:
     """
-    Return :func:`sampling_caution` for a record without PV: OP's own cycle, MV for PV.
+    Return the analysis of ``analysis.record`` judged from OP and PV, its MV set aside.
 
-    OP cycles with the loop (a sticky valve's limit cycle is a sawtooth in
-    OP), so its period says how many samples a cycle holds; '' when no
-    stretch of OP and MV is long enough to tell.
+    PV followed the set point, so the valve moved and its position reading is
+    dead: a fit to that reading measures OP's travel, not friction.  The
+    record is analysed again as one without MV (the learned detector decides),
+    and ``mv_dead`` keeps what the first analysis said of MV: the reason, the
+    set-point test and the fits, so that nothing read is lost.  The record
+    stays the one read, MV included, for the figures and ``--explain``.
     """
-    stretches = record.segments(MIN_SIGNATURE_SAMPLES)
-    if not stretches or not record.has('mv'):
-        return ''
-    a, b = max(stretches, key=lambda r: r[1] - r[0])
-    op, mv = record.signals['op'][a:b], record.signals['mv'][a:b]
-    osc = detect_oscillation(op - np.mean(op), record.sample_time)
-    return sampling_caution({'op': op, 'pv': mv, 'sp': None}, osc, record.sample_time,
-                            sticks, 'MV')
-
-
-def sampling_caution(held: dict, osc, sample_time: float, sticks: bool,
-                     pv_name: str = 'PV') -> str:
-    """
-    Return why S and J fitted to MV cannot be trusted at this sampling, or ''.
-
-    MV is measured, so the fits see no alias; but a loop cycling in fewer
-    than 10 samples has its turning points, where the valve sticks and
-    slips, between samples.  Table 2.1's loop with S 5 %, J 2 % (a 144 s
-    cycle) fitted 4.71 % at 18 s and 2.89 % at 60 s, each 95 % range short
-    of 5 %.  ``sticks``: the fits found stiction, so its band reads low;
-    otherwise a band this sampling cannot resolve may have been missed.
-    ``pv_name``: what ``held['pv']`` holds (MV where the record has no PV).
-    """
-    if len(held['pv']) >= MIN_SAMPLES and alternating(held['op'], held['pv']):
-        seen = (f'OP and {pv_name} alternate from sample to sample (a cycle of 2-3 samples '
-                f'of {sample_time:g} s)')
-    elif (osc is not None and osc.oscillating and osc.period_s
-          and osc.period_s / sample_time < MIN_PERIOD_SAMPLES):
-        seen = (f'the loop cycles every {osc.period_s:.4g} s, only '
-                f'{osc.period_s / sample_time:.1f} samples of {sample_time:g} s (at least '
-                f'{MIN_PERIOD_SAMPLES:g} a cycle: record at '
-                f'{osc.period_s / MIN_PERIOD_SAMPLES:.3g} s or faster, or faster still: at '
-                'this sampling the true cycle may alias to a longer one)')
-    else:
-        return ''
-    if sticks:
-        return (f"{seen}; S and J fitted to MV at this sampling miss the valve's turning "
-                'points between samples: they read low, and their 95 % ranges do not allow '
-                'for it')
-    return (f"{seen}; the valve's turning points fall between samples, so a small band may "
-            'have been missed')
+    record, first = analysis.record, analysis.report
+    # Rows invalid for MV alone stay out: they were out of the record as read.
+    blind = replace(record, signals={k: v for k, v in record.signals.items() if k != 'mv'},
+                    notes=list(record.notes))
+    out = analyze(blind, options, progress, stage)
+    st = first['stiction']
+    out.record = record
+    out.report['signals'] = first['signals']
+    out.report['mv_dead'] = {'reason': st['reason'], 'set_point_test': st['set_point_test'],
+                             'fits': first['fits']}
+    notes = out.report['notes']
+    # The blind copy's own note would say MV was never recorded.
+    out.report['notes'] = [n for n in notes if not n.startswith('no valve position (mv)')] + [
+        'MV set aside as a dead reading (mv_dead): the verdict rests on OP and PV']
+    return out

@@ -125,7 +125,9 @@ def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None) -> 
     of OP's travel), yet three causes leave MV still, and two are not friction:
     a band wider than OP's travel, a valve held (no air, a handwheel), a dead
     or frozen position reading.  MV tells none of them apart; PV can rule the
-    reading in or out where the set point moved (``sp_test``).
+    reading in or out where the set point moved (``sp_test``).  Where it rules
+    the reading in (``mv_dead``), :func:`stiction_ros.analysis.pipeline.analyze`
+    then judges the record from OP and PV.
     """
     moved = f'MV did not move while OP travelled {still.op_spread:.2g} %'
     if sp_test is None:
@@ -134,8 +136,8 @@ def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None) -> 
                                  'tells none of them apart, a valve travel test does')
     elif sp_test.follows:
         code, why = 'mv_dead', (f'{moved}, but {sp_test.sentence()}; friction '
-                                'cannot be read from it (a copy of the record without its '
-                                'mv column is judged from OP and PV)')
+                                'cannot be read from MV, so the record is judged from OP and '
+                                'PV, as one without MV')
     else:
         code, why = 'mv_still', (f'{moved}, and {sp_test.sentence()}; a friction '
                                  'band wider than that travel or a valve held (no air, a '

@@ -400,11 +400,12 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
         # A fit to a valve that never moved reads MV's noise: a calibration of gain 0 or a
         # dead time would be named with full confidence.
         # PV may have ruled the dead reading in or out (the verdict's set-point test).
-        st = analysis.report['stiction']
+        st = analysis.report.get('mv_dead') or analysis.report['stiction']
         pv_says = f' From PV: {st["reason"]}.' if 'set_point_test' in st else ''
         analysis.report['mismatch'] = {
             'effect': 'cannot_tell', 'effects': [], 'friction': None,
-            'reason': st.get('cannot_tell', 'mv_still'),
+            'reason': ('mv_dead' if 'mv_dead' in analysis.report
+                       else st.get('cannot_tell', 'mv_still')),
             'explanation': f'Cannot explain a mismatch: {still.sentence()}.{pv_says}'}
         return
     from stiction_ros.analysis.mismatch.decide import explain_record

@@ -69,6 +69,8 @@ def summary_line(report: dict) -> str:
     # A recording read only in part (a bag that ends early) says so in an audit too.
     for warning in (report.get('input') or {}).get('warnings') or []:
         line += f'\n  warning: {warning}'
+    if report.get('mv_dead'):
+        line += f'\n  MV set aside: {report["mv_dead"]["reason"]}'
     for ev in st.get('evidence', [])[:2]:
         line += f'\n  evidence: {ev}'
     if st.get('size_withheld'):
@@ -116,6 +118,8 @@ def summary_text(report: dict, files: Sequence[str] = (), width: int | None = No
     if report['fits']:
         add('fits', '; '.join(f'{f["model"]} S={f["S"]:.2f} J={f["J"]:.2f} MSE={f["mse"]:.4g}'
                               for f in report['fits']))
+    if report.get('mv_dead'):
+        add('MV', f'set aside: {report["mv_dead"]["reason"]}')
     evidence = st.get('evidence') or []
     # 'cannot tell' has its reason on the first line already.
     if not evidence and st['detected'] is not None:

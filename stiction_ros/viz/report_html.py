@@ -106,6 +106,11 @@ def _verdict(report: dict) -> list:
                    f'physics <code>--explain</code> found. With it in place ({e(name)}, '
                    f'below), the valve itself has S {num(s, 4, "%")} and J '
                    f'{num(j, 4, "%")}.</p>')
+    dead = report.get('mv_dead')
+    if dead:
+        out.append(f'<p>MV set aside, so OP and PV decide: {clean(dead["reason"])}. The fits '
+                   f'to that reading are kept in the JSON report (<code>mv_dead.fits</code>).'
+                   '</p>')
     if how:
         out.append(rule(how))
     if st.get('size_withheld'):
