@@ -120,11 +120,12 @@ cnn-large-tune: venv
 # Tests that start no ROS node run on two workers (pytest-xdist), a test file whole
 # in one; those that do (marker `ros`) then run in one process, as alone as they were
 # written for: a node that starts in 19 s on a machine busy with another file misses
-# a test's wait (seen with them on two workers too).
+# a test's wait (seen with them on two workers too).  The slowest tests are listed at the
+# end of each part: the suite must stay under 15 min on 2 cores.
 TEST_JOBS ?= 2
 test: venv
-	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not ros' test
-	$(PY) -m pytest -q -m ros test
+	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not ros' --durations=15 test
+	$(PY) -m pytest -q -m ros --durations=10 test
 
 # The input fuzz suite with fresh random inputs, 1 500 per test (CI runs 120, always the same).
 fuzz: venv

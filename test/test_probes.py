@@ -34,6 +34,26 @@ def test_the_linear_twin_is_the_same_loop_with_only_the_characteristic_taken_out
     assert checked >= 10
 
 
+def test_the_long_dead_time_probe_is_the_corpus_loop_with_more_dead_time_and_a_looser_pi():
+    from dataclasses import asdict
+    from stiction_ros.sim.corpus import draw_scenario
+    checked = 0
+    for seed in range(40):
+        drawn, longer = asdict(draw_scenario(seed)), asdict(draw_scenario(seed, extra_delay=9.0))
+        if drawn['look_alike'] in ('aggressive_tuning', 'integrating_cycle'):
+            continue        # a ringing look-alike redraws its plant until it rings
+        # Only the dead time and what depends on the tuning move.
+        moved = {k for k in drawn if drawn[k] != longer[k]}
+        assert moved <= {'delay', 'Kc', 'Ti', 'noise_std', 'gap'} and 'delay' in moved
+        assert math.isclose(longer['delay'] - drawn['delay'], 9.0 * drawn['sample_time'])
+        # Tuned for the longer dead time: a smaller gain, as every rule gives.
+        assert longer['Kc'] < drawn['Kc']
+        checked += 1
+    assert checked >= 30
+    a, b = probes.long_dead_time(7), probes.long_dead_time(7, twin=True)
+    assert (a.label, a.integrating, a.sample_time) == (b.label, b.integrating, b.sample_time)
+
+
 def test_a_loop_is_cooled_only_when_its_linear_version_does_not_settle():
     t = np.arange(probes.SETTLE)
     assert probes._settles(lambda kick: kick * 0.999 ** t)

@@ -206,9 +206,13 @@ def _place(plant, sign, kc, ki, floor, ceiling=None):
     return kc, ki, ceiling is None or low <= ceiling
 
 
-def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
+def draw_scenario(seed: int, label: bool | None = None, extra_delay: float = 0.0) -> Scenario:
     """
     Draw one loop from ``seed``; ``label`` None draws stiction with probability 1/2.
+
+    ``extra_delay`` (samples) lengthens the drawn plant's dead time before the
+    loop is tuned for it: loops outside the corpus (at most 8 samples), for
+    ``bench.dead_time_check``; everything else drawn stays the same.
 
     Returns
     -------
@@ -251,6 +255,7 @@ def draw_scenario(seed: int, label: bool | None = None) -> Scenario:
     # rate; a ringing look-alike redraws its plant (same stream) until it does.
     for _ in range(20):
         tau, tau2, delay, gain, noise = _draw_plant(rng, integrating)
+        delay += extra_delay
         kc, ti = _tune(rng, tuning, integrating, tau, tau2, delay, gain)
         sc = Scenario(**common, gain=float(sign * gain / (ts if integrating else 1.0)),
                       tau=float(tau * ts), tau2=float(tau2 * ts), delay=float(delay * ts),

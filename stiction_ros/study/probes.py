@@ -7,7 +7,7 @@ probes were written (it has since drawn some of them), their controller run
 once per exported sample.  A plant has more: equal-percentage valves whose
 installed gain grows as they open, level controllers with a gap or an
 error-squared law, loops tuned past stability, controllers that run many
-times per historian sample.
+times per historian sample, dead times longer than any it drew.
 Each probe here draws one such family from its own generator (not the
 corpus's, so nothing in it was tuned on), and :func:`run` reads every record
 by the analyzer's own path (:func:`detect`).  A healthy record called
@@ -249,6 +249,28 @@ def fast_controller(seed: int, average: bool = False, twin: bool = False) -> Pro
                        sc.label)
 
 
+LONGER = (6.0, 16.0)    # samples of dead time added to the drawn loop's, drawn per seed
+
+
+def long_dead_time(seed: int, twin: bool = False) -> ProbeRecord:
+    """
+    Return a corpus loop whose dead time is 6-16 samples longer than drawn, tuned for it.
+
+    The corpus draws at most 8 samples of dead time; a temperature loop logged
+    every second, or a flow behind a long line, has more.  The loop of
+    ``draw_scenario(seed)`` gets ``LONGER`` more samples (drawn per seed) and
+    is tuned for its new dead time as the corpus tunes (a looser controller);
+    all else drawn stays (a look-alike that must ring redraws its plant).
+    With ``twin`` the loop as the corpus draws it: what the dead time changes.
+    """
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    added = 0.0 if twin else float(np.random.default_rng([seed, 23]).uniform(*LONGER))
+    sc = draw_scenario(seed, extra_delay=added)
+    rec = simulate(sc)
+    return ProbeRecord(rec['op'], rec['pv'], rec['sp'], sc.sample_time, sc.integrating,
+                       sc.label)
+
+
 # name, what it stands for, generator.
 PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
@@ -272,6 +294,10 @@ PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('fast controller, twin', 'the same loops, draw for draw, with the controller run once '
      'per sample as the corpus runs it: what the faster controller itself changes',
      lambda seed: fast_controller(seed, twin=True)),
+    ('long dead time', 'a corpus loop whose dead time is 6-16 samples longer than drawn '
+     '(the corpus draws at most 8), tuned for it; both labels', long_dead_time),
+    ('long dead time, twin', 'the same loops, draw for draw, with the dead time drawn: what '
+     'the longer dead time itself changes', lambda seed: long_dead_time(seed, twin=True)),
 )
 
 
