@@ -24,10 +24,11 @@ from bench.host_state_bench import bench_host_state, markdown as host_state_mark
 from bench.host_state_bench import throughput
 from bench.identify_bench import bench_identify, markdown as identify_markdown
 from bench.live_bench import bench_live, markdown as live_markdown
-from bench.load_bench import carried_section
+from bench.load_bench import carried_section, END as LOAD_END, START as LOAD_START
 from bench.loop_bench import bench_loop, markdown as loop_markdown
 from bench.physical_bench import bench_physical, markdown as physical_markdown
 from bench.startup_bench import bench_startup, markdown as startup_markdown
+from bench.transport_bench import END as TRANSPORT_END, START as TRANSPORT_START
 import numpy as np
 
 from stiction_ros._jit import load_numba
@@ -175,10 +176,12 @@ def main():
         lines += [''] + batch_markdown(batch, 'The labelled plant loops of ../shared/data')
     if detector:
         lines += [''] + detector_markdown(detector)
-    # The load benchmark (make bench-load) takes a quarter of an hour: its section stays.
-    carried = carried_section()
-    if carried:
-        lines += [''] + carried
+    # The load benchmark (make bench-load) takes a quarter of an hour, and the transport
+    # comparison (bench.transport_bench) is run on its own: their sections stay.
+    for markers in ((LOAD_START, LOAD_END), (TRANSPORT_START, TRANSPORT_END)):
+        carried = carried_section(markers=markers)
+        if carried:
+            lines += [''] + carried
     out = ROOT / 'docs' / 'BENCHMARKS.md'
     out.write_text('\n'.join(lines), encoding='utf-8')
     print(out.read_text())
