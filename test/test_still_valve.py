@@ -162,8 +162,10 @@ def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, caps
     reports = {}
     for path in (dead, stuck, blind):
         out = tmp_path / f'{path.stem}.json'
-        assert main([str(path), '--explain', '--quiet', '--json', str(out),
-                     '--html', str(tmp_path / f'{path.stem}.html')]) == 0
+        # The blind copy is read for its verdict alone.
+        pages = ([] if path is blind else
+                 ['--explain', '--html', str(tmp_path / f'{path.stem}.html')])
+        assert main([str(path), '--quiet', '--json', str(out), *pages]) == 0
         reports[path.stem] = json.loads(out.read_text())
     # A dead reading is set aside, kept, and the record judged as the blind copy is.
     report = reports['dead']
