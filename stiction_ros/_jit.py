@@ -98,7 +98,7 @@ def _check(code: str) -> Callable[[Any], bool]:
     import numpy as np
     code = code.replace(' ', '')
     if code.endswith(']'):
-        dtype = np.dtype({'f8': np.float64, 'i8': np.int64}[code[:2]])
+        dtype = np.dtype({'f8': np.float64, 'i8': np.int64, 'b1': np.bool_}[code[:2]])
         ndim = code.count(',') + 1
 
         def array_ok(a: Any) -> bool:

@@ -52,6 +52,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stiction_ros.kernels.lags import lag_from_rest
+from stiction_ros.kernels.law import law_r2_shifts
 
 __all__ = ['Alignment', 'alignment', 'HELD', 'LAG_RATIO', 'lag_profile', 'LAGS', 'law_profile',
            'law_r2', 'LEAD', 'MARGIN', 'MAX_SHIFT', 'MIN_LAG_R2', 'MIN_LAW_R2', 'propose',
@@ -243,25 +244,17 @@ def _law_rows(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None,
     return d_op, d_e, e, free, known
 
 
+def _fit_shifts(rows: tuple | None, first: int, last: int) -> np.ndarray:
+    """Return the law's R² on :func:`_law_rows`'s rows with PV ``first`` .. ``last`` rows later."""
+    if rows is None:
+        return np.full(last - first + 1, np.nan)
+    d_op, d_e, e, free, known = rows
+    return law_r2_shifts(d_op, d_e, e, free, known, int(first), int(last), MIN_ROWS)
+
+
 def _fit_shift(rows: tuple | None, shift: int) -> float:
     """Return the law's R² on :func:`_law_rows`'s rows with PV ``shift`` rows later."""
-    if rows is None:
-        return float('nan')
-    d_op, d_e, e, free, known = rows
-    n, k = len(d_op), int(shift)
-    lo, hi = max(0, -k), min(n, n - k)
-    if hi - lo < MIN_ROWS:
-        return float('nan')
-    use = free[lo:hi] & known[lo + k:hi + k]
-    y = d_op[lo:hi][use]
-    if y.size < MIN_ROWS:
-        return float('nan')
-    x = np.column_stack([d_e[lo + k:hi + k][use], e[lo + k:hi + k][use], np.ones(y.size)])
-    var = float(np.var(y))
-    if not var > 0.0:
-        return float('nan')
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    return float(max(0.0, 1.0 - np.var(y - x @ coef) / var))
+    return float(_fit_shifts(rows, shift, shift)[0])
 
 
 def propose(profiles: np.ndarray, min_r2: float = MIN_LAW_R2,
@@ -285,8 +278,7 @@ def propose(profiles: np.ndarray, min_r2: float = MIN_LAW_R2,
 
 def law_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
     """Return the law's R² at every shift ``-MAX_SHIFT`` .. ``MAX_SHIFT`` (NaN: not fitted)."""
-    rows = _law_rows(op, pv, sp, 0.0)
-    return np.array([_fit_shift(rows, k) for k in range(-MAX_SHIFT, MAX_SHIFT + 1)])
+    return _fit_shifts(_law_rows(op, pv, sp, 0.0), -MAX_SHIFT, MAX_SHIFT)
 
 
 def lag_profile(op: np.ndarray, pv: np.ndarray, sp: np.ndarray | None) -> np.ndarray:
