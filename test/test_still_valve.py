@@ -194,11 +194,13 @@ def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, caps
 def test_the_dead_reading_check_runs_both_cases_of_a_plain_loop_and_skips_the_others():
     from bench.dead_reading_check import one
     from stiction_ros.sim.corpus import draw_scenario
-    plain = next(s for s in range(6_700_000, 6_700_050)
-                 if draw_scenario(s).valve == 'linear' and not draw_scenario(s).look_alike)
-    rows = one(plain)
-    assert [r[1] for r in rows] == ['dead reading', 'stuck valve']
-    # Where it answers, it answers right; a still-reading check comes first.
-    assert all(r[3] in (None, True) and (r[2] or r[3] is None) for r in rows)
-    sticky = next(s for s in range(6_700_000, 6_700_050) if draw_scenario(s).valve != 'linear')
-    assert one(sticky) == []
+    rows = {s: one(s) for s in range(6_700_000, 6_700_300)}
+    plain = [s for s, r in rows.items() if r]
+    assert all([r[1] for r in rows[s]] == ['dead reading', 'stuck valve'] for s in plain)
+    assert all(draw_scenario(s).valve != 'linear' or draw_scenario(s).look_alike
+               for s, r in rows.items() if not r)
+    # The test decides rarely (a set-point move must show PV following it or not), but
+    # on these seeds it decides both cases at least once, and where it answers it is right.
+    told = [r for s in plain for r in rows[s] if r[3] is not None]
+    assert {r[1] for r in told} == {'dead reading', 'stuck valve'}
+    assert all(r[2] and r[3] for r in told)
