@@ -128,3 +128,26 @@ def test_an_exact_fit_reports_every_pair_that_fits_as_exactly():
     assert len(ii) > 1
     assert fit.S_interval[0] <= s_ax[ii].min() and s_ax[ii].max() <= fit.S_interval[1]
     assert fit.J_interval[0] <= j_ax[jj].min() and j_ax[jj].max() <= fit.J_interval[1]
+
+
+def test_a_valve_that_only_left_rest_is_sized_past_ops_travel():
+    # The chapter's pure deadband (S 5 %, J 0) answering a set-point step: the valve
+    # breaks away from rest once OP has travelled (S + J) / 2, so in the first 1 400 s
+    # OP spans under 4 % and the valve still moved. A box of S <= OP's travel cut the
+    # true S off (3.99 fitted, MSE 0.24 against 0 at the truth).
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'deadband')
+    d = simulate_loop(cfg)
+    op, mv = d['op'][:1400], d['mv'][:1400]
+    assert np.ptp(op) < 5.0 * 0.8 and np.ptp(mv) > 0.1
+    fit = identify(op, mv, 'kano', interval=False)
+    assert abs(fit.S - 5.0) <= 0.05 and fit.J <= 0.05, (fit.S, fit.J)
+    assert fit.mse <= ValveProblem('kano', op, mv).mse(5.0, 0.0) + 1e-12
+
+
+def test_a_valve_sized_inside_the_box_is_searched_once():
+    d = noisy_loop('kano', 3.47, 1.23, seed=1, duration=3000)
+    problem = ValveProblem('kano', d['op'], d['mv'])
+    narrow = search(problem, float(np.ptp(d['op'])), float(np.ptp(d['mv'])))
+    fit = identify(d['op'], d['mv'], 'kano', interval=False)
+    assert (fit.S, fit.J) == (round(narrow[1], 10), round(narrow[2], 10))
+    assert fit.evaluations == problem.evaluations

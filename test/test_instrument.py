@@ -9,6 +9,7 @@ from stiction_ros.analysis.mismatch import decide
 from stiction_ros.analysis.mismatch import frictionless
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch import stats
+from stiction_ros.sim.closed_loop import simulate_loop
 from stiction_ros.sim.concealed_cases import concealed_case
 
 
@@ -178,6 +179,22 @@ def test_play_without_stick_is_backlash_not_stiction(loop):
     assert [e['id'] for e in m['effects']] == ['backlash']
     assert abs(m['effects'][0]['size'] - 3.0) < 0.3
     _never_worse_than_frictionless(r)
+
+
+def test_the_chapters_pure_deadband_is_play_not_a_calibration():
+    # Table 2.1's deadband column (S 5 %, J 0) with noise: in the first 70 % the valve
+    # only ever leaves rest, and OP spans less than S. Friction sized within OP's travel
+    # lost to a "valve" reading 51 % scaled by -0.011: a reading that does not follow OP,
+    # named a positioner calibration with confidence 1.
+    from stiction_ros.resources import config_file
+    from stiction_ros.sim.loop_config import load_loop
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'deadband',
+                    overrides={'noise': {'pv_std': 0.02, 'mv_std': 0.05, 'seed': 2}})
+    d = simulate_loop(cfg)
+    m = _explain(d, d['mv'])['mismatch']
+    assert m['friction_kind'] == 'backlash' and m['friction'] is False
+    assert [e['id'] for e in m['effects']] == ['backlash']
+    assert abs(m['effects'][0]['size'] - 5.0) < 0.25
 
 
 def test_shifting_op_by_one_sample_moves_the_dead_time_not_the_verdict(loop):

@@ -269,8 +269,15 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
              round(float(j_ax[jj.max()]) + pad, 10)))
 
 
+# Where the search's best S comes within this share of the box's S side, the box may
+# have cut the valve's S off: a valve that starts at rest breaks away once OP has
+# travelled (S + J) / 2, so OP's travel bounds S only after a reversal the valve
+# followed, and 2 x the travel from rest (models.breakaway).
+AT_CAP = 0.95
+
+
 def plausible_box(op, mv):
-    """Return (s_max, j_max): S cannot exceed the OP travel, J the MV travel."""
+    """Return (s_max, j_max): S within OP's travel, J within MV's (see ``AT_CAP``)."""
     s_max = float(np.ptp(op))
     j_max = float(np.ptp(mv))
     if s_max <= 0.0:
@@ -318,6 +325,12 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
         step = None if progress is None else functools.partial(
             _report, progress, model, i + 1, len(candidates))
         sse, S, J = search(problem, s_max, j_max, resolution, progress=step)
+        if S >= AT_CAP * s_max and s_max < 100.0:
+            # Searched again on the whole box a first move from rest allows; kept
+            # only where it fits better, so that a valve inside the box is unchanged.
+            wide = search(problem, min(2.0 * s_max, 100.0), j_max, resolution, progress=step)
+            if wide[0] < sse:
+                sse, S, J = wide
         if best is None or sse < best[0]:
             best = (sse, S, J, fv, problem)
     sse, S, J, fv, problem = best
