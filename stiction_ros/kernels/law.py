@@ -37,43 +37,50 @@ def law_r2_shifts(d_op: Floats, d_e: Floats, e: Floats, free: np.ndarray, known:
     """
     n = d_op.shape[0]
     out = np.full(last - first + 1, np.nan)
+    # The rows that count at a shift, gathered once: both passes read them.
+    ys = np.empty(n)
+    xa = np.empty(n)
+    xb = np.empty(n)
     for k in range(first, last + 1):
         lo = max(0, -k)
         hi = min(n, n - k)
         if hi - lo < min_rows:
             continue
         m = 0
-        sy = 0.0
-        s1 = 0.0
-        s2 = 0.0
         for i in range(lo, hi):
             if free[i] and known[i + k]:
+                ys[m] = d_op[i]
+                xa[m] = d_e[i + k]
+                xb[m] = e[i + k]
                 m += 1
-                sy += d_op[i]
-                s1 += d_e[i + k]
-                s2 += e[i + k]
         if m < min_rows:
             continue
-        my = sy / m
-        m1 = s1 / m
-        m2 = s2 / m
+        my = 0.0
+        m1 = 0.0
+        m2 = 0.0
+        for j in range(m):
+            my += ys[j]
+            m1 += xa[j]
+            m2 += xb[j]
+        my /= m
+        m1 /= m
+        m2 /= m
         syy = 0.0
         s11 = 0.0
         s12 = 0.0
         s22 = 0.0
         s1y = 0.0
         s2y = 0.0
-        for i in range(lo, hi):
-            if free[i] and known[i + k]:
-                y = d_op[i] - my
-                a = d_e[i + k] - m1
-                b = e[i + k] - m2
-                syy += y * y
-                s11 += a * a
-                s12 += a * b
-                s22 += b * b
-                s1y += a * y
-                s2y += b * y
+        for j in range(m):
+            y = ys[j] - my
+            a = xa[j] - m1
+            b = xb[j] - m2
+            syy += y * y
+            s11 += a * a
+            s12 += a * b
+            s22 += b * b
+            s1y += a * y
+            s2y += b * y
         if not syy > 0.0:
             continue
         det = s11 * s22 - s12 * s12
