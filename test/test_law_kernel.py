@@ -1,26 +1,15 @@
-"""The timing check's compiled law fit against the plain least-squares fit it replaced."""
+"""
+The timing check's compiled law fit against the plain least-squares fit it replaced.
 
+The reference is the one ``make bench-detector`` times it against.
+"""
+
+from bench.detector_bench import lstsq_r2
 import numpy as np
 import pytest
-
 from stiction_ros import _jit
 from stiction_ros.analysis.detection.timing import law_profile, MAX_SHIFT, MIN_ROWS
 from stiction_ros.kernels.law import law_r2_shifts
-
-
-def lstsq_r2(d_op, d_e, e, free, known, k):
-    """Return the R² of dOP on (dE, E, 1) at shift ``k`` by numpy's least squares."""
-    n = len(d_op)
-    lo, hi = max(0, -k), min(n, n - k)
-    if hi - lo < MIN_ROWS:
-        return np.nan
-    use = free[lo:hi] & known[lo + k:hi + k]
-    y = d_op[lo:hi][use]
-    if y.size < MIN_ROWS or not np.var(y) > 0:
-        return np.nan
-    x = np.column_stack([d_e[lo + k:hi + k][use], e[lo + k:hi + k][use], np.ones(y.size)])
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    return max(0.0, 1.0 - np.var(y - x @ coef) / np.var(y))
 
 
 def rows(seed, kind):
