@@ -6,12 +6,12 @@ at every shift of PV against OP and through every lag of its grid: a few
 dozen fits of three columns on every record, and tens of thousands when the
 check's thresholds are chosen again (``study.lag``, ``study.skew``).  As
 ``numpy.linalg.lstsq`` calls, the overhead of each call was most of that
-time.  Here one pass per shift gathers the means and a second the centred
-cross-products, and the two-column projection gives the explained share in
-closed form.  The fitted values of least squares are unique even where the
-columns are dependent, so R² is too; the fallback below keeps that where
-the two centred columns are (nearly) parallel.  test/test_lag_check.py
-holds this to ``lstsq``.
+time.  Here the rows that count at a shift are gathered once, then summed
+for their means and again for the centred cross-products, and the
+two-column projection gives the explained share in closed form.  The fitted
+values of least squares are unique even where the columns are dependent, so
+R² is too; the fallback below keeps that where the two centred columns are
+(nearly) parallel.  test/test_law_kernel.py holds this to ``lstsq``.
 """
 
 import numpy as np
