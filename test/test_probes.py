@@ -34,6 +34,15 @@ def test_the_linear_twin_is_the_same_loop_with_only_the_characteristic_taken_out
     assert checked >= 10
 
 
+def test_the_twins_are_one_generator_the_corpus_loop_as_drawn_read_once():
+    twins = [draw for name, _, draw in PROBES if name.endswith(', twin')]
+    assert len(twins) == 2 and twins[0] is twins[1] is probes.as_drawn
+    for seed in (3, 4):
+        a, b = probes.fast_controller(seed, twin=True), probes.as_drawn(seed)
+        np.testing.assert_array_equal(a.op, b.op)
+        np.testing.assert_array_equal(a.pv, b.pv)
+
+
 def test_the_long_dead_time_probe_is_the_corpus_loop_with_more_dead_time_and_a_looser_pi():
     from dataclasses import asdict
     from stiction_ros.sim.corpus import draw_scenario

@@ -212,7 +212,7 @@ def draw_scenario(seed: int, label: bool | None = None, extra_delay: float = 0.0
 
     ``extra_delay`` (samples) lengthens the drawn plant's dead time before the
     loop is tuned for it: loops outside the corpus (at most 8 samples), for
-    ``bench.dead_time_check``; everything else drawn stays the same.
+    ``study.probes.long_dead_time``; everything else drawn stays the same.
 
     Returns
     -------

@@ -271,7 +271,12 @@ def long_dead_time(seed: int, twin: bool = False) -> ProbeRecord:
                        sc.label)
 
 
-# name, what it stands for, generator.
+def as_drawn(seed: int) -> ProbeRecord:
+    """Return the corpus loop of ``seed`` as drawn: the twin of the probes that change it."""
+    return long_dead_time(seed, twin=True)
+
+
+# name, what it stands for, generator (twins share one: their records are read once).
 PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
     ('equal percentage', 'an equal-percentage valve (rangeability 20-50), tuned 0.8-2.5 times '
      'hotter than SIMC for its gain at the operating point, then cooled until the linear '
@@ -293,11 +298,11 @@ PROBES: tuple[tuple[str, str, Callable[[int], ProbeRecord]], ...] = (
      lambda seed: fast_controller(seed, average=True)),
     ('fast controller, twin', 'the same loops, draw for draw, with the controller run once '
      'per sample as the corpus runs it: what the faster controller itself changes',
-     lambda seed: fast_controller(seed, twin=True)),
+     as_drawn),
     ('long dead time', 'a corpus loop whose dead time is 6-16 samples longer than drawn '
      '(the corpus draws at most 8), tuned for it; both labels', long_dead_time),
     ('long dead time, twin', 'the same loops, draw for draw, with the dead time drawn: what '
-     'the longer dead time itself changes', lambda seed: long_dead_time(seed, twin=True)),
+     'the longer dead time itself changes', as_drawn),
 )
 
 
@@ -348,9 +353,13 @@ def run(seeds: range, jobs: int = 1,
         say: Callable[[int, int, float], None] | None = None) -> Probes:
     """Return the detector's answers on every probe of :data:`PROBES` for ``seeds``."""
     t0, got = time.perf_counter(), []
-    jobs_list = [(j, s) for j in range(len(PROBES)) for s in seeds]
+    # A generator listed twice (the twins) is read under its first probe only.
+    first = {j: next(i for i, p in enumerate(PROBES) if p[2] is PROBES[j][2])
+             for j in range(len(PROBES))}
+    jobs_list = [(j, s) for j in sorted(set(first.values())) for s in seeds]
     for i, r in enumerate(pool_map(_read, jobs_list, jobs, chunksize=4), 1):
-        got.append(r)
+        got += [(j, *r[1:]) for j in range(len(PROBES)) if first[j] == r[0]]
         if say is not None:
             say(i, len(jobs_list), time.perf_counter() - t0)
+    got.sort(key=lambda a: a[0])
     return Probes(seeds, got, time.perf_counter() - t0)
