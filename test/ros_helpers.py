@@ -28,6 +28,12 @@ from stiction_ros.nodes.sampled import DATA_QOS
 MODULES = {'controller': 'controller_node', 'valve': 'valve_node', 'plant': 'plant_node',
            'recorder': 'recorder_node', 'sim_clock': 'sim_clock_node',
            'analyzer': 'analyzer_node'}
+# Under pytest-xdist two test files with nodes run at once, and a node can take several
+# times longer to start or answer than alone (its parameter services 13 s against 3 s):
+# every wait here stretches by this factor.  A wait ends as soon as its condition holds,
+# so a passing test takes no longer; only a failure is reported later.  A service call
+# is not stretched: its timeout is also when a lost response is sent again.
+SLACK = 3.0 if os.environ.get('PYTEST_XDIST_WORKER') else 1.0
 
 
 def start_node(name, params=None, namespace='', log_dir=None, extra=(), preexec_fn=None):
@@ -58,7 +64,7 @@ def stop(proc, sig=signal.SIGINT, timeout=15.0):
     if proc.poll() is None:
         proc.send_signal(sig)
     try:
-        return proc.wait(timeout)
+        return proc.wait(timeout * SLACK)
     except subprocess.TimeoutExpired:
         proc.kill()
         return proc.wait()
@@ -66,6 +72,7 @@ def stop(proc, sig=signal.SIGINT, timeout=15.0):
 
 def wait_for(condition, timeout=20.0, what='condition'):
     """Poll ``condition()`` until true; fail the test with ``what`` on timeout."""
+    timeout *= SLACK
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if condition():
@@ -145,7 +152,7 @@ class Probe:
     def params(self, node_name, timeout=20.0):
         """Return a parameter client of ``node_name`` once its services are up."""
         client = AsyncParameterClient(self.node, node_name)
-        assert client.wait_for_services(timeout), f'no parameter services on {node_name}'
+        assert client.wait_for_services(timeout * SLACK), f'no parameter services on {node_name}'
         return client
 
     def call(self, client, request, timeout=10.0, tries=3):

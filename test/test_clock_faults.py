@@ -11,7 +11,7 @@ import time
 import pytest
 from ros_helpers import start_node, stop, wait_for
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.alone]
 
 TS = 0.1
 NODES = {'plant': {'num': [1.0], 'den': [5.0, 1.0], 'delay': 0.0},

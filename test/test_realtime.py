@@ -91,6 +91,7 @@ def test_set_fifo_covers_every_thread_and_children_start_normal():
 
 
 @pytest.mark.ros
+@pytest.mark.alone
 @needs_fifo
 def test_a_realtime_node_that_cannot_keep_up_returns_to_the_normal_scheduler(tmp_path):
     # 10 kHz is beyond any Python executor: every tick is due before the last one ends.
@@ -119,6 +120,7 @@ def test_a_realtime_node_that_cannot_keep_up_returns_to_the_normal_scheduler(tmp
 
 
 @pytest.mark.ros
+@pytest.mark.alone
 @needs_fifo
 def test_the_launcher_runs_above_its_realtime_nodes_and_ends_the_run(tmp_path):
     loop = subprocess.Popen(
