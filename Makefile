@@ -120,11 +120,11 @@ cnn-large-tune: venv
 # Tests that start no ROS node run on two workers (pytest-xdist), a test file whole
 # in one.  Those that do (marker `ros`) then run on two workers too, each on its own ROS
 # domain (conftest) and with its waits stretched 3x (ros_helpers.SLACK): there the waits
-# took up to 0.66 of the unstretched limit, and the part 250-280 s against 410 s in one
-# process.  Last, one at a time, the `alone` ones: a node under SCHED_FIFO takes a core,
-# and the clock-fault test counts samples that a busy machine lets pass (its nodes took
-# 13-19 s to start beside CPU-bound tests).  The slowest tests are listed at the end of
-# each part: the suite must stay under 15 min on 2 cores.
+# took up to 0.66 of the unstretched limit.  Last, one at a time, the `alone` ones: a
+# node under SCHED_FIFO takes a core, the clock-fault test counts samples that a busy
+# machine lets pass (its nodes took 13-19 s to start beside CPU-bound tests), and a
+# valve killed and respawned beside another file left no gap in one CI run.  The slowest
+# tests are listed at the end of each part: the suite must stay under 15 min on 2 cores.
 TEST_JOBS ?= 2
 test: venv
 	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not ros' --durations=15 test

@@ -27,7 +27,7 @@ from stiction_ros.analysis.record import runs
 from stiction_ros.cli.loop import RESPAWN_AFTER
 from stiction_ros.nodes import state_file
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.alone]
 TS = 0.05
 VALVE = {'sample_time': TS, 'model': 'kano', 'S': 6.0, 'J': 2.0, 'initial_position': 50.0}
 

@@ -38,9 +38,7 @@ fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip setuptools wheel
 args=()
 for f in $req_files; do args+=(-r "$f"); done
-# No byte-compiling of every installed module (about 20 s of the install): Python
-# compiles and caches those a run imports, once, on first import.
-"$VENV/bin/python" -m pip install --quiet --no-compile "${args[@]}"
+"$VENV/bin/python" -m pip install --quiet "${args[@]}"
 "$VENV/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e .
 # Compile the kernels now, so that the first start of a node loads them (about 1 s).
 "$VENV/bin/python" -m stiction_ros.cli.precompile
