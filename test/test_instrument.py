@@ -103,6 +103,32 @@ def test_curvature_errors_are_the_least_squares_errors_of_a_correlated_line():
     assert got[0] > 5 * alone
 
 
+def test_curvature_errors_cover_where_a_search_stopped_short_of_the_minimum():
+    # The same correlated line, its offset left 3 errors short of the least-squares
+    # value (a grid point, a search's tolerance): the offset's error must reach the
+    # minimum, and the gain, at its own best given the offset's miss, keeps its error.
+    rng = np.random.default_rng(4)
+    x = rng.uniform(40.0, 60.0, 400)
+    y = 1.0 + 0.97 * x + 0.2 * rng.standard_normal(400)
+    X = np.column_stack([np.ones_like(x), x])
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    sigma2 = float(np.sum((y - X @ beta) ** 2)) / len(y)
+    naive = np.sqrt(sigma2 * np.diag(np.linalg.inv(X.T @ X)))
+
+    def sse(t):
+        e = y - X @ np.asarray(t)
+        return float(e @ e)
+
+    short = beta - [3.0 * naive[0], 0.0]
+    got = stats.curvature_errors(sse, short, [0.01, 1e-3], sigma2)
+    np.testing.assert_allclose(got, [math.hypot(naive[0], 3.0 * naive[0]), naive[1]],
+                               rtol=1e-3)
+    assert abs(short[0] - beta[0]) <= 2.0 * got[0]
+    # One parameter on its own curvature (the fallback): the same rule.
+    one = stats.curvature_errors(lambda t: 4.0 * (t[0] - 1.0) ** 2, [1.5], [1e-3], 2.0)
+    assert one[0] == pytest.approx(math.hypot(math.sqrt(2.0 * 2.0 / 8.0), 0.5))
+
+
 def test_curvature_errors_fall_back_to_each_parameters_own_curvature_on_a_flat_direction():
     def sse(t):
         return 4.0 * (t[0] - 1.0) ** 2         # the second parameter changes nothing

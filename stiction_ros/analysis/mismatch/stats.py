@@ -86,6 +86,13 @@ def curvature_errors(sse, theta, steps, sigma2: float) -> list:
     implies, not the error it would have with the others known.  Where the
     joint Hessian is not positive definite (a kink, a flat direction) each
     parameter keeps its own curvature's error, and one with none gets inf.
+
+    ``theta`` may lie off the minimum: a search stopped at its tolerance, or
+    kept a grid point.  The quadratic through the same points then has its
+    minimum ``-H^-1 g`` away (``g`` the central-difference gradient), and each
+    parameter's distance to it is added to its error in quadrature, so that
+    the error also covers where the search stopped.  At the minimum ``g`` is
+    zero and nothing is added.
     """
     theta = np.asarray(theta, dtype=np.float64)
     h = np.asarray(steps, dtype=np.float64)
@@ -110,12 +117,15 @@ def curvature_errors(sse, theta, steps, sigma2: float) -> list:
             hess[i, j] = hess[j, i] = (at((i, 1), (j, 1)) - at((i, 1), (j, -1))
                                        - at((i, -1), (j, 1)) + at((i, -1), (j, -1))) / (
                 4.0 * h[i] * h[j])
-    # sse ~ f0 + d' H d / 2, and the noise variance sigma2: cov = 2 sigma2 H^-1
-    alone = [math.sqrt(2.0 * sigma2 / c) if c > 0 else math.inf for c in np.diag(hess)]
+    grad = np.array([(at((i, 1)) - at((i, -1))) / (2.0 * h[i]) for i in range(k)])
+    # sse ~ f0 + g' d + d' H d / 2, and the noise variance sigma2: cov = 2 sigma2 H^-1
     if k > 1 and np.all(np.isfinite(hess)) and np.all(np.diag(hess) > 0):
         scale = 1.0 / np.sqrt(np.diag(hess))
         corr = hess * np.outer(scale, scale)
         if np.linalg.eigvalsh(corr).min() > 1e-9:
-            cov = 2.0 * sigma2 * np.linalg.inv(corr) * np.outer(scale, scale)
-            return [math.sqrt(max(v, 0.0)) for v in np.diag(cov)]
-    return alone
+            inv = np.linalg.inv(corr) * np.outer(scale, scale)
+            miss = inv @ grad
+            return [math.sqrt(max(v, 0.0) + m * m)
+                    for v, m in zip(np.diag(2.0 * sigma2 * inv), miss)]
+    return [math.sqrt(2.0 * sigma2 / c + (g / c) ** 2) if c > 0 else math.inf
+            for c, g in zip(np.diag(hess), grad)]
