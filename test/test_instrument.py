@@ -81,44 +81,39 @@ def test_heldout_test_sees_a_real_gain_and_none_between_equal_models():
     assert better['gain'] > 0.1 and better['p'] < 0.01
 
 
-def test_curvature_errors_are_the_least_squares_errors_of_a_correlated_line():
-    # A calibration read as offset + gain * OP with OP far from 0: offset and gain trade
-    # off, and the offset's error is many times the one it would have with the gain known.
-    rng = np.random.default_rng(3)
-    x = rng.uniform(40.0, 60.0, 400)
-    y = 1.0 + 0.97 * x + 0.2 * rng.standard_normal(400)
-    X = np.column_stack([np.ones_like(x), x])
-    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
-    r = y - X @ beta
-    sigma2 = float(r @ r) / len(y)
+def _calibration_line(seed):
+    """
+    Return (sse, least-squares beta, sigma2, least-squares errors) of offset + gain * OP.
 
-    def sse(t):
-        e = y - X @ np.asarray(t)
-        return float(e @ e)
-
-    got = stats.curvature_errors(sse, beta, [0.01, 1e-3], sigma2)
-    naive = np.sqrt(sigma2 * np.diag(np.linalg.inv(X.T @ X)))
-    np.testing.assert_allclose(got, naive, rtol=1e-4)
-    alone = math.sqrt(sigma2 / len(y))          # the offset's error with the gain known
-    assert got[0] > 5 * alone
-
-
-def test_curvature_errors_cover_where_a_search_stopped_short_of_the_minimum():
-    # The same correlated line, its offset left 3 errors short of the least-squares
-    # value (a grid point, a search's tolerance): the offset's error must reach the
-    # minimum, and the gain, at its own best given the offset's miss, keeps its error.
-    rng = np.random.default_rng(4)
+    OP lies far from 0, so offset and gain trade off.
+    """
+    rng = np.random.default_rng(seed)
     x = rng.uniform(40.0, 60.0, 400)
     y = 1.0 + 0.97 * x + 0.2 * rng.standard_normal(400)
     X = np.column_stack([np.ones_like(x), x])
     beta, *_ = np.linalg.lstsq(X, y, rcond=None)
     sigma2 = float(np.sum((y - X @ beta) ** 2)) / len(y)
-    naive = np.sqrt(sigma2 * np.diag(np.linalg.inv(X.T @ X)))
 
     def sse(t):
         e = y - X @ np.asarray(t)
         return float(e @ e)
+    return sse, beta, sigma2, np.sqrt(sigma2 * np.diag(np.linalg.inv(X.T @ X)))
 
+
+def test_curvature_errors_are_the_least_squares_errors_of_a_correlated_line():
+    # The offset's error is many times the one it would have with the gain known.
+    sse, beta, sigma2, naive = _calibration_line(3)
+    got = stats.curvature_errors(sse, beta, [0.01, 1e-3], sigma2)
+    np.testing.assert_allclose(got, naive, rtol=1e-4)
+    alone = math.sqrt(sigma2 / 400)          # the offset's error with the gain known
+    assert got[0] > 5 * alone
+
+
+def test_curvature_errors_cover_where_a_search_stopped_short_of_the_minimum():
+    # The offset left 3 errors short of the least-squares value (a grid point, a
+    # search's tolerance): the offset's error must reach the minimum, and the gain,
+    # at its own best given the offset's miss, keeps its error.
+    sse, beta, sigma2, naive = _calibration_line(4)
     short = beta - [3.0 * naive[0], 0.0]
     got = stats.curvature_errors(sse, short, [0.01, 1e-3], sigma2)
     np.testing.assert_allclose(got, [math.hypot(naive[0], 3.0 * naive[0]), naive[1]],
