@@ -13,6 +13,7 @@ types would leave the run's version still to compile.
 """
 
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 import importlib
 import multiprocessing
 import os
@@ -114,5 +115,10 @@ def precompile(say: Say = print) -> float:
             t = time.perf_counter()
             stage()
             say(f'precompile: {name} kernels ready in {time.perf_counter() - t:.1f} s')
-        built.result()
+        try:
+            built.result()
+        except (BrokenProcessPool, OSError) as exc:
+            # As a failed build: the analyzer's kernels then compile on first use.
+            say(f'precompile: the process building kernels ahead of time ended '
+                f'({type(exc).__name__}: {exc}); they compile on first use instead')
     return time.perf_counter() - t0
