@@ -276,6 +276,11 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
 AT_CAP = 0.95
 
 
+def wider_s(s: float, s_max: float) -> float | None:
+    """Return the S side to search again where ``s`` came within ``AT_CAP`` of it, else None."""
+    return min(2.0 * s_max, 100.0) if s >= AT_CAP * s_max and s_max < 100.0 else None
+
+
 def plausible_box(op, mv):
     """Return (s_max, j_max): S within OP's travel, J within MV's (see ``AT_CAP``)."""
     s_max = float(np.ptp(op))
@@ -325,10 +330,11 @@ def identify(op, mv, model='kano', segments=None, sample_time=1.0, resolution=0.
         step = None if progress is None else functools.partial(
             _report, progress, model, i + 1, len(candidates))
         sse, S, J = search(problem, s_max, j_max, resolution, progress=step)
-        if S >= AT_CAP * s_max and s_max < 100.0:
+        s_wide = wider_s(S, s_max)
+        if s_wide is not None:
             # Searched again on the whole box a first move from rest allows; kept
             # only where it fits better, so that a valve inside the box is unchanged.
-            wide = search(problem, min(2.0 * s_max, 100.0), j_max, resolution, progress=step)
+            wide = search(problem, s_wide, j_max, resolution, progress=step)
             if wide[0] < sse:
                 sse, S, J = wide
         if best is None or sse < best[0]:

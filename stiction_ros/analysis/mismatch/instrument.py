@@ -25,7 +25,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from stiction_ros.analysis.fit_core import carried_runs
-from stiction_ros.analysis.identify import AT_CAP, identify, plausible_box
+from stiction_ros.analysis.identify import identify, plausible_box, wider_s
 from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUTION, \
     start_positions
 from stiction_ros.analysis.mismatch.stats import curvature_errors
@@ -256,9 +256,10 @@ def _backlash_s(u, y, segments, s_max, p):
     j = np.zeros(1)
     s_axis = np.linspace(0.0, max(s_max, 0.1), 41)
     scores = problem.grid(s_axis, j, p)[:, 0]
-    if s_axis[int(np.argmin(scores))] >= AT_CAP * s_axis[-1]:
+    s_wide = wider_s(float(s_axis[int(np.argmin(scores))]), float(s_axis[-1]))
+    if s_wide is not None:
         # The play may be wider than OP's travel from rest allows past (identify.AT_CAP).
-        s_axis = np.linspace(0.0, min(2.0 * s_axis[-1], 100.0), 81)
+        s_axis = np.linspace(0.0, s_wide, 81)
         scores = problem.grid(s_axis, j, p)[:, 0]
     s0 = float(s_axis[int(np.argmin(scores))])
     step = s_axis[1] - s_axis[0]
