@@ -21,6 +21,10 @@ def test_why_not_names_balanced_evidence_or_the_check_failed():
     assert _why_not({'reason': 'too few fits: the valve position is missing'}) == \
         'too few fits'
     assert _why_not({}) == 'no reason given'
+    # With MV: a band whose slip jump may be none, named, not cut from its sentence.
+    assert _why_not({'cannot_tell': 'slip_unresolved',
+                     'reason': 'a band of 3 % whose slip jump cannot be told from none: J = '
+                               '0.20 % (95 % range 0.02-0.40) ...'}) == 'slip jump unresolved'
 
 
 def test_the_tally_breaks_cannot_tell_down_and_survives_rows_without_a_reason(capsys):

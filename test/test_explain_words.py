@@ -44,10 +44,13 @@ def test_play_without_a_slip_is_said_to_beat_the_valve_without_friction(loop, tm
     assert m['effect'] == 'backlash' and 'cannot tell apart' in m['explanation']
     assert 'finds play without a slip jump, not stick-slip' in out
     assert 'no friction beats the best valve without friction' not in out
-    # The verdict from OP and PV calls it stiction (the loop's own valve sticks); the note
-    # says what --explain makes of the position instead.
-    assert report['stiction']['detected']
-    assert 'play without a slip jump (backlash or a pure deadband) beats' in out
+    # The headline reads the same position and says the same: play, sized, not stick-slip;
+    # so no note has to reconcile the two.
+    st = report['stiction']
+    assert st['detected'] is False and st['score'] == 0.0 and 'cannot_tell' not in st
+    assert st['reason'].startswith('play of ') and 'without a slip jump' in st['reason']
+    assert abs(st['apparent_S'] - 3.0) < 0.3
+    assert 'play without a slip jump (backlash or a pure deadband) beats' not in out
 
 
 def test_the_notes_reconcile_the_verdict_and_weigh_a_worse_held_out_fit(loop, tmp_path, capsys):
@@ -55,9 +58,17 @@ def test_the_notes_reconcile_the_verdict_and_weigh_a_worse_held_out_fit(loop, tm
     noise = 0.1 * np.random.default_rng(2).standard_normal(len(loop['op']))
     _, report = _run(loop, 2.0 + 0.95 * loop['op'] + noise, tmp_path, capsys)
     m, b = report['mismatch'], report['baseline']
-    # The headline from OP and PV says no stiction where --explain claims it: said.
+    # The headline says no stiction, or cannot tell, where --explain claims it: said.
     report['stiction']['detected'], m['friction'] = False, True
     assert 'claims stiction from the valve position itself' in _mismatch_lines(report)
+    report['stiction']['detected'] = None
+    assert ('cannot tell stick-slip from play in valve models without dead time'
+            in _mismatch_lines(report))
+    # The headline says stiction where --explain finds play only: said too.
+    report['stiction']['detected'], m['friction'], m['friction_kind'] = True, False, 'backlash'
+    assert 'play without a slip jump (backlash or a pure deadband) beats' in _mismatch_lines(
+        report)
+    m['friction_kind'] = 'none'
     # Worse held out by a fraction of a per cent is noise; by a fifth, a warning.
     m['mse_holdout'] = b['mse_holdout'] * 1.004
     assert 'worse held out' not in _mismatch_lines(report)

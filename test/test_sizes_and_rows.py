@@ -189,6 +189,23 @@ def test_a_given_size_gets_no_caution_and_no_invented_range(sticky_loop, tmp_pat
     assert '95 % range' not in rep['stiction']['reason']
 
 
+def test_a_band_is_stiction_only_with_a_slip_jump_its_range_keeps_off_zero():
+    # The chapter's pure deadband (J = 0) is play; a jump whose range reaches zero may be.
+    fit = {'model': 'kano', 'S': 3.0, 'J': 0.0, 'mse': 0.01, 'improvement': 0.9,
+           'S_interval': [2.9, 3.1], 'J_interval': [0.0, 0.01]}
+    play = combine(None, {}, [fit])
+    assert (play['detected'], play['answer'], play['score']) == (False, 'no stiction', 0.0)
+    assert play['apparent_S'] == 3.0 and 'cannot_tell' not in play
+    maybe = combine(None, {}, [{**fit, 'J': 0.2, 'J_interval': [0.02, 0.4]}])
+    assert maybe['detected'] is None and maybe['cannot_tell'] == 'slip_unresolved'
+    assert 'cannot be told from none' in maybe['reason']
+    sticks = combine(None, {}, [{**fit, 'J': 0.2, 'J_interval': [0.06, 0.4]}])
+    assert sticks['detected'] is True and sticks['score'] == 0.9
+    # Without the band no jump matters: an ideal valve's fit is no stiction, its score kept.
+    flat = combine(None, {}, [{**fit, 'S_interval': [0.0, 0.3], 'improvement': 0.1}])
+    assert flat['detected'] is False and flat['score'] == 0.1
+
+
 def test_without_stiction_the_caution_says_a_band_may_be_missed():
     from types import SimpleNamespace
     from stiction_ros.analysis.caution import sampling_caution

@@ -3,16 +3,25 @@ The combined verdict: is the valve sticking, with a score from 0 to 1.
 
 With a measured valve position the answer comes from the fits: the valve
 sticks when the identified S is clearly above zero (its 95 % range starts
-above ``MIN_S``) and the stiction model explains the MV much better than an
-ideal valve does.  Without it, the OP/PV signatures vote: each decided
-signature counts 1 for stiction and 0 against, weighted by ``WEIGHTS``; an
-undetermined one does not vote.  ``score`` is the weighted mean of the votes
-and stiction is reported when it reaches ``THRESHOLD``.  In a loop without a
-regular oscillation only the signatures of ``WITHOUT_OSCILLATION`` vote:
-they look for single stick-slip events, where the others need a limit
-cycle (Yamashita's index needs none either, but it also fires on noisy
-healthy loops, see docs/ACCURACY.md).  The weights and the threshold are the ones whose
-cross-validated accuracy on the real plant loops is in ``docs/ACCURACY.md``.
+above ``MIN_S``), the stiction model explains the MV much better than an
+ideal valve does, and the fit needs a slip jump (J's 95 % range starts at
+``MIN_J`` or above).  A band without a jump is the chapter's pure deadband
+(J = 0): play, from a worn linkage or a positioner's deadband as much as
+from friction, which moves the valve smoothly once taken up.  It is answered
+``no stiction`` with the play's size, as ``--explain`` and the learned
+detector answer it (issue 18 counts deadband and backlash as look-alikes), and
+``cannot tell`` where J's range straddles ``MIN_J``.
+
+With neither a measured position nor the learned detector, the OP/PV
+signatures vote: each decided signature counts 1 for stiction and 0 against,
+weighted by ``WEIGHTS``; an undetermined one does not vote.  ``score`` is the
+weighted mean of the votes and stiction is reported when it reaches
+``THRESHOLD``.  In a loop without a regular oscillation only the signatures
+of ``WITHOUT_OSCILLATION`` vote: they look for single stick-slip events,
+where the others need a limit cycle (Yamashita's index needs none either, but
+it also fires on noisy healthy loops, see docs/ACCURACY.md).  The weights and
+the threshold are the ones whose cross-validated accuracy on the real plant
+loops is in ``docs/ACCURACY.md``.
 """
 
 from stiction_ros.analysis.measures.still import SetPointTest, Still
@@ -20,6 +29,8 @@ from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
 MIN_S = 0.2
 MIN_IMPROVEMENT = 0.5
+# A slip jump (% of span) below this is none; --explain claims stick-slip from the same floor.
+MIN_J = 0.05
 WEIGHTS = {'horch': 1.0, 'he_curve_fit': 1.0, 'hos_pv_op': 1.0, 'yamashita': 1.0,
            'slip_events': 1.0}
 THRESHOLD = 0.5
@@ -32,13 +43,32 @@ def from_fits(fits):
     improvement = best.get('improvement')
     interval = best.get('S_interval')
     lo = interval[0] if interval else best['S']
+    jumps = best.get('J_interval')
+    j_lo = jumps[0] if jumps else best['J']
     score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
-    detected = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
+    banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
+    detected = banded and j_lo >= MIN_J
     ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
     why = (f'{best["model"]} fits the measured MV with S = {best["S"]:.2f} %{ranged}, '
            f'J = {best["J"]:.2f} %, MSE {best["mse"]:.4g}')
     if improvement is not None:
         why += f', {100 * improvement:.0f} % below the MSE of an ideal valve'
+    if banded and not detected:
+        # The band is real; the score is the evidence for stick-slip, which it lacks.
+        score = 0.0
+        j_hi = jumps[1] if jumps else best['J']
+        ranged = f' (95 % range {jumps[0]:.2f}-{jumps[1]:.2f})' if jumps else ''
+        if j_hi < MIN_J:
+            why = (f'play of {best["S"]:.2f} % without a slip jump: J = {best["J"]:.2f} %'
+                   f'{ranged} is under {MIN_J:g} %, so once OP has taken up the play the '
+                   'valve moves smoothly (a deadband or backlash: a worn linkage, a '
+                   'positioner deadband, or friction whose static and kinetic forces are '
+                   f'equal), not stick-slip; {why}')
+        else:
+            detected = None
+            why = (f'a band of {best["S"]:.2f} % whose slip jump cannot be told from none: '
+                   f'J = {best["J"]:.2f} %{ranged} reaches below {MIN_J:g} %, so stick-slip '
+                   f'and play without it (a deadband or backlash) fit alike; {why}')
     return detected, score, best['S'], why
 
 
@@ -90,6 +120,8 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
     if fits:
         detected, score, size, why = from_fits(fits)
         apparent = size
+        if detected is None:
+            extra['cannot_tell'] = 'slip_unresolved'
     else:
         vote = from_signatures(osc, sigs)
         extra['signature_vote'] = {'detected': vote[0], 'score': round(float(vote[1]), 4),

@@ -263,6 +263,8 @@ def _why_not(st: dict) -> str:
     if det.get('balanced'):
         return 'evidence balanced'
     code = (det.get('judgeable') or {}).get('code')
+    if st.get('cannot_tell') == 'slip_unresolved':
+        return 'slip jump unresolved'
     if code:
         return code.replace('_', ' ')
     # No check named: the reason's first words say more than a bare "other".

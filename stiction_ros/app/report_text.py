@@ -283,10 +283,14 @@ def _mismatch_lines(report):
                'to; read them with caution')
         line += (f'\nnote: the explained model is worse held out than the plain one '
                  f'({b["mse_holdout"]:.4g} -> {m["mse_holdout"]:.4g}){why}')
-    if report['stiction'].get('detected') is False and m.get('friction') is True:
-        line += ('\nnote: the verdict above reads OP and PV and valve models without dead '
-                 'time, lead or calibration; --explain, with the timing and calibration it '
-                 'found in place, claims stiction from the valve position itself, held out')
+    if report['stiction'].get('detected') is not True and m.get('friction') is True:
+        told = ('reads OP and PV and valve models without dead time, lead or calibration'
+                if report['stiction'].get('detected') is False else
+                'cannot tell stick-slip from play in valve models without dead time, lead '
+                'or calibration')
+        line += (f'\nnote: the verdict above {told}; --explain, with the timing and '
+                 'calibration it found in place, claims stiction from the valve position '
+                 'itself, held out')
     if report['stiction'].get('detected') and m.get('friction') is False:
         found = ('play without a slip jump (backlash or a pure deadband) beats the best '
                  'valve without friction, stick-slip does not' if

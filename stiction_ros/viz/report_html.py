@@ -17,7 +17,8 @@ from stiction_ros import __version__
 from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND, probability_text
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
-from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_S, THRESHOLD as VOTE_THRESHOLD
+from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_J, MIN_S, \
+    THRESHOLD as VOTE_THRESHOLD
 from stiction_ros.viz.html_parts import clean, e, figure, INPUT_META, MSE_UNIT, num, pct, \
     PV_UNITS, rule, span, STYLE, table
 from stiction_ros.viz.report_explain import explain_parts
@@ -69,7 +70,7 @@ def _verdict(report: dict) -> list:
     st = report.get('stiction', {})
     verdict = ('STICTION DETECTED' if st.get('detected')
                else 'no stiction detected' if st.get('detected') is False else 'cannot tell')
-    if report.get('fits') and st.get('cannot_tell'):
+    if report.get('fits') and st.get('cannot_tell') == 'mv_still':
         # The fits' score then measures how far OP travelled from a still MV, not friction.
         strength = (f'MV never moved, so the fits cannot decide (their score, '
                     f'{num(st.get("score"), 3)}, measures OP&rsquo;s travel, not friction)')
@@ -78,8 +79,11 @@ def _verdict(report: dict) -> list:
         strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
         how = (f'With the valve position (MV) the fits decide: stiction when the 95 % range '
                f'of the best model&rsquo;s S starts at or above {num(MIN_S)} % and its MSE is '
-               f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP). The '
-               'score is that reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>).')
+               f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP), and '
+               f'the 95 % range of its slip jump J starts at or above {num(MIN_J)} %. Such a '
+               'band without a jump is play (a deadband or backlash): no stiction where J '
+               'stays under that, cannot tell where its range straddles it. The score is '
+               'the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>), 0 for play.')
     elif st.get('probability') is not None:
         # As the reason under it and the terminal print it: two decimals, three in the tails.
         shown = probability_text(st['probability'], DETECTOR_BAND)

@@ -35,8 +35,8 @@ from stiction_ros.analysis.mismatch.lead import find_lead, lead_effect
 from stiction_ros.analysis.mismatch.stats import acf1, chi2_999, earns, heldout_test, \
     lr_eff, P_HELDOUT
 from stiction_ros.analysis.mismatch.sticky import explain_sticky
+from stiction_ros.analysis.verdict import MIN_J
 
-MIN_J = 0.05
 STICK_SLIP_EFFECTS = ('dwell_time_breakaway', 'stribeck_stick_slip')
 PLAUSIBLE = ins.PLAUSIBLE
 
