@@ -149,7 +149,7 @@ def test_a_killed_plant_or_controller_resumes_without_a_jump(probe, tmp_path, vi
 LOOP_FILE = """
 name: restart
 sample_time: 0.05
-duration: 20.0
+duration: 30.0
 plant: {num: [1.0], den: [2.0, 1.0], delay: 0.0, mv0: 50.0, pv0: 0.0}
 controller: {Kc: 2.0, Ti: 1.0, setpoint: 5.0}
 valve: {model: kano, S: 4.0, J: 1.0}
@@ -212,7 +212,12 @@ def test_the_loop_respawns_a_killed_valve_and_the_gap_is_marked_and_left_out(tmp
     # The launcher restarts only a node that ran for RESPAWN_AFTER s (one dying at
     # once would only die again); on a quick machine discovery beats that.
     time.sleep(max(0.0, RESPAWN_AFTER + 0.5 - _uptime(victims[0])))
+    # A slow start can leave little of the loop's 30 s: a kill after its end tests nothing
+    # (one CI run on two workers left no gap in the bag; the cause was not caught).
+    up = _uptime(victims[0])
+    assert run.poll() is None, f'the loop ended before the kill (valve up {up:.1f} s)'
     os.kill(victims[0], signal.SIGKILL)
+    print(f'valve killed {up:.1f} s after it started')
     out, _ = run.communicate(timeout=90)
     assert run.returncode == 0, out
     assert 'restarting it from its state' in out, out
