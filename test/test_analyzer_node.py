@@ -11,7 +11,7 @@ import json
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import pytest
 from ros_helpers import start_node, wait_for
-from stiction_ros.nodes.analyzer_node import LATCHED
+from stiction_ros.nodes.analyzer_node import LATCHED, level_of
 from test_analyze_cli import loop_csv
 
 pytestmark = pytest.mark.ros
@@ -48,6 +48,21 @@ def test_verdict_is_published_once_with_key_values_and_the_report_written(
     report = json.loads((tmp_path / 'r.json').read_text())
     assert report['fits'][0]['model'] == 'kano'
     assert len(diagnostics) == 1
+
+
+def test_play_without_a_slip_jump_is_no_stiction_and_a_warning_when_wide(tmp_path):
+    # The chapter's pure deadband (J = 0): play, not stick-slip, but a band that makes a
+    # loop hunt once it is as wide as error_S.
+    from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
+    loop_csv(tmp_path / 'play.csv', S=3.0, J=0.0, duration=2000,
+             noise={'pv_std': 0.02, 'mv_std': 0.05, 'seed': 2})
+    report = analyze_file(AnalyzeOptions(input=str(tmp_path / 'play.csv'),
+                                         model='kano')).report
+    assert report['stiction']['detected'] is False
+    assert abs(report['stiction']['play'] - 3.0) <= 0.1
+    level, message = level_of(report, 2.0)
+    assert level == DiagnosticStatus.WARN and 'play of 3.0' in message
+    assert level_of(report, 5.0)[0] == DiagnosticStatus.OK
 
 
 def test_bad_input_publishes_an_error_and_exits_2(diagnostics, tmp_path):

@@ -195,9 +195,10 @@ def test_a_band_is_stiction_only_with_a_slip_jump_its_range_keeps_off_zero():
            'S_interval': [2.9, 3.1], 'J_interval': [0.0, 0.01]}
     play = combine(None, {}, [fit])
     assert (play['detected'], play['answer'], play['score']) == (False, 'no stiction', 0.0)
-    assert play['apparent_S'] == 3.0 and 'cannot_tell' not in play
+    assert play['apparent_S'] == play['play'] == 3.0 and 'cannot_tell' not in play
     maybe = combine(None, {}, [{**fit, 'J': 0.2, 'J_interval': [0.02, 0.4]}])
     assert maybe['detected'] is None and maybe['cannot_tell'] == 'slip_unresolved'
+    assert 'play' not in maybe
     assert 'cannot be told from none' in maybe['reason']
     sticks = combine(None, {}, [{**fit, 'J': 0.2, 'J_interval': [0.06, 0.4]}])
     assert sticks['detected'] is True and sticks['score'] == 0.9

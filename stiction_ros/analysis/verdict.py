@@ -38,7 +38,7 @@ WITHOUT_OSCILLATION = ('slip_events',)
 
 
 def from_fits(fits):
-    """Return (detected, score, S, reason) from the model fits."""
+    """Return (detected, score, S, reason, play) from the fits; ``play``: a jumpless band's S."""
     best = min(fits, key=lambda f: f['mse'])
     improvement = best.get('improvement')
     interval = best.get('S_interval')
@@ -46,6 +46,7 @@ def from_fits(fits):
     jumps = best.get('J_interval')
     j_lo = jumps[0] if jumps else best['J']
     score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
+    play = None
     banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
     detected = banded and j_lo >= MIN_J
     ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
@@ -59,6 +60,7 @@ def from_fits(fits):
         j_hi = jumps[1] if jumps else best['J']
         ranged = f' (95 % range {jumps[0]:.2f}-{jumps[1]:.2f})' if jumps else ''
         if j_hi < MIN_J:
+            play = best['S']
             why = (f'play of {best["S"]:.2f} % without a slip jump: J = {best["J"]:.2f} %'
                    f'{ranged} is under {MIN_J:g} %, so once OP has taken up the play the '
                    'valve moves smoothly (a deadband or backlash: a worn linkage, a '
@@ -69,7 +71,7 @@ def from_fits(fits):
             why = (f'a band of {best["S"]:.2f} % whose slip jump cannot be told from none: '
                    f'J = {best["J"]:.2f} %{ranged} reaches below {MIN_J:g} %, so stick-slip '
                    f'and play without it (a deadband or backlash) fit alike; {why}')
-    return detected, score, best['S'], why
+    return detected, score, best['S'], why, play
 
 
 def from_signatures(osc, sigs, weights=None, threshold=None):
@@ -118,8 +120,10 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
         apparent = ell.value
     extra = {}
     if fits:
-        detected, score, size, why = from_fits(fits)
+        detected, score, size, why, play = from_fits(fits)
         apparent = size
+        if play is not None:
+            extra['play'] = play
         if detected is None:
             extra['cannot_tell'] = 'slip_unresolved'
     else:

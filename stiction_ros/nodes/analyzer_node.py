@@ -36,7 +36,13 @@ def level_of(report, error_s):
     if st['detected'] is None:
         return DiagnosticStatus.WARN, 'cannot tell: ' + st.get('reason', '')
     if not st['detected']:
-        return DiagnosticStatus.OK, 'no stiction detected'
+        play = st.get('play')
+        if play is None:
+            return DiagnosticStatus.OK, 'no stiction detected'
+        # Play is no stick-slip, but a band this wide still makes a loop hunt.
+        level = DiagnosticStatus.WARN if play >= error_s else DiagnosticStatus.OK
+        return level, (f'no stiction detected; play of {play:.2f} % without a slip jump '
+                       '(a deadband or backlash)')
     size = max(s for s in sizes if s is not None)
     level = DiagnosticStatus.ERROR if size >= error_s else DiagnosticStatus.WARN
     if st.get('probability') is not None:
@@ -51,7 +57,8 @@ def key_values(report):
     st = report['stiction']
     kv = [('detected', st['detected']), ('answer', st.get('answer')),
           ('probability', st.get('probability')), ('score', f'{st["score"]:.3f}'),
-          ('apparent_S', st.get('apparent_S')), ('samples', report['samples'])]
+          ('apparent_S', st.get('apparent_S')), ('play', st.get('play')),
+          ('samples', report['samples'])]
     if st.get('size_caution'):
         kv.append(('size_caution', st['size_caution']))
     for f in report['fits']:
