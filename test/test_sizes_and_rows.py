@@ -196,6 +196,11 @@ def test_a_band_is_stiction_only_with_a_slip_jump_its_range_keeps_off_zero():
     play = combine(None, {}, [fit])
     assert (play['detected'], play['answer'], play['score']) == (False, 'no stiction', 0.0)
     assert play['apparent_S'] == play['play'] == 3.0 and 'cannot_tell' not in play
+    # Read from an MV that never moved, the band is neither play nor stiction.
+    from stiction_ros.analysis.measures.still import Still
+    from stiction_ros.analysis.verdict import refuse_still
+    refuse_still(play, Still(mv_spread=0.05, op_spread=2.0, noise=0.05), None)
+    assert play['cannot_tell'] == 'mv_still' and 'play' not in play
     maybe = combine(None, {}, [{**fit, 'J': 0.2, 'J_interval': [0.02, 0.4]}])
     assert maybe['detected'] is None and maybe['cannot_tell'] == 'slip_unresolved'
     assert 'play' not in maybe

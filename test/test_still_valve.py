@@ -71,6 +71,7 @@ def test_explain_cannot_tell_and_the_size_is_a_lower_bound_on_a_valve_that_never
     assert max(f['improvement'] for f in report['fits']) > 0.9
     assert st['detected'] is None and st['answer'] == 'cannot tell'
     assert st['cannot_tell'] == 'mv_still' and 'dead position reading' in st['reason']
+    assert 'play' not in st
     out = capsys.readouterr().out
     assert 'stuck: cannot tell (MV did not move' in out
     # Its set point never moved: PV cannot say which of the three it is.

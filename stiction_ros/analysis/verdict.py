@@ -178,6 +178,8 @@ def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None) -> 
         code, why = 'mv_still', (f'{moved}, and {sp_test.sentence()}; a friction '
                                  'band wider than that travel or a valve held (no air, a '
                                  'handwheel): a valve travel test tells which')
+    # A band read from a still MV is no play either: nothing of how it moves is known.
+    stiction.pop('play', None)
     stiction.update(detected=None, answer=ANSWER[None], cannot_tell=code, reason=why)
     if sp_test is not None:
         stiction['set_point_test'] = sp_test.to_json()
