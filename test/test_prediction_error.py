@@ -109,3 +109,18 @@ def test_the_disturbance_filter_inverts_an_integrated_moving_average():
         k = np.arange(1, 500)
         # The record's first sample is unknown to the filter; its error decays as c^k.
         assert np.allclose(_noise_filter(v, c)[1:], e[1:] - c ** k * e[0], atol=1e-9)
+
+
+def test_the_shared_gram_fit_matches_one_least_squares_solve_per_window():
+    from bench.detector_bench import rss_lstsq
+    from stiction_ros.analysis.detection.output_error import sticky_paths, target
+    from stiction_ros.analysis.detection.prediction_error import _Predictor
+    op, pv = _closed_loop(True, 7, n=600)
+    y, u = target(op, pv, False)
+    fit = _Predictor(y)
+    paths = [u] + [p for _, p in sticky_paths(u, op)][::7]
+    # A valve that never moves: its lags are empty columns, left out as lstsq leaves them.
+    paths.append(np.full_like(u, 42.0))
+    for path in paths:
+        fast, naive = fit.rss(path)[0], rss_lstsq(fit, path)
+        assert abs(fast - naive) <= 1e-9 * naive

@@ -38,6 +38,9 @@ PE_DELAYS = (1, 2, 3, 5, 8, 12)
 # The longest dead time's rows have no regressor, and the first increment is
 # the zero that ``prepend`` makes: every fit drops them all.
 SKIP = max(PE_DELAYS) + 1
+# Eigenvalues of a window's Gram matrix under this share of its largest are no direction
+# (singular values of the regressors under 3e-7 of theirs): a flat valve path's lags.
+RANK_FLOOR = 1e-13
 
 
 def _noise_filter(x: np.ndarray, c: float) -> np.ndarray:
@@ -53,6 +56,27 @@ def _lags(u: np.ndarray) -> np.ndarray:
     return np.column_stack([first_order_lag(u, float(np.exp(-1.0 / t))) for t in LAG_TAUS])
 
 
+def _window_rss(x: np.ndarray, y: np.ndarray, first: int, lo: int, hi: int,
+                g_mid: np.ndarray) -> float:
+    """
+    Return the least-squares RSS of ``y`` on ``x[first:first + len(y)]``.
+
+    The Gram matrix is that of the rows every delay shares (``g_mid``, rows
+    ``lo:hi``) plus this window's own rows before and after them: one product
+    over the record serves every delay, summed, never differenced.  Directions
+    with an eigenvalue under ``RANK_FLOOR`` of the largest are left out, as a
+    rank-revealing least-squares solver leaves out a flat valve's empty lags.
+    """
+    rows = x[first:first + len(y)]
+    head, tail = x[first:lo], x[hi:first + len(y)]
+    w, v = np.linalg.eigh(g_mid + head.T @ head + tail.T @ tail)
+    keep = w > w[-1] * RANK_FLOOR
+    vk = v[:, keep]
+    coef = vk @ ((vk.T @ (rows.T @ y)) / w[keep])
+    r = y - rows @ coef
+    return float(r @ r)
+
+
 class _Predictor:
     """PV's filtered increments per noise model, and the best fit of a valve path."""
 
@@ -64,15 +88,15 @@ class _Predictor:
         """Return the least residual sum of squares and its ``c``, over ``c`` and dead time."""
         best, best_c = np.inf, float('nan')
         path = path - path.mean()
-        rows = self.n - SKIP
+        n = self.n
+        # Rows every delay's window holds: the Gram matrix of these is shared.
+        lo, hi = SKIP - min(PE_DELAYS), n - max(PE_DELAYS)
         for c in NOISE_C:
-            lag = _lags(_noise_filter(path, c))
+            x = np.column_stack([_lags(_noise_filter(path, c)), np.ones(n)])
+            g_mid = x[lo:hi].T @ x[lo:hi]
             yc = self.ys[c]
             for d in PE_DELAYS:
-                x = np.column_stack([lag[SKIP - d:self.n - d], np.ones(rows)])
-                coef = np.linalg.lstsq(x, yc, rcond=None)[0]
-                r = yc - x @ coef
-                rr = float(r @ r)
+                rr = _window_rss(x, yc, SKIP - d, lo, hi, g_mid)
                 if rr < best:
                     best, best_c = rr, c
         return best, best_c
