@@ -25,6 +25,8 @@ def test_why_not_names_balanced_evidence_or_the_check_failed():
     assert _why_not({'cannot_tell': 'slip_unresolved',
                      'reason': 'a band of 3 % whose slip jump cannot be told from none: J = '
                                '0.20 % (95 % range 0.02-0.40) ...'}) == 'slip jump unresolved'
+    assert _why_not({'cannot_tell': 'noisy_mv', 'reason': 'stick-slip (S = 3 %, ...'}) == \
+        'MV noise'
 
 
 def test_the_tally_breaks_cannot_tell_down_and_survives_rows_without_a_reason(capsys):

@@ -212,6 +212,27 @@ def test_a_band_is_stiction_only_with_a_slip_jump_its_range_keeps_off_zero():
     assert flat['detected'] is False and flat['score'] == 0.1
 
 
+def test_stick_slip_fitted_down_to_a_noisy_readings_noise_is_cannot_tell_not_no_stiction(
+        tmp_path):
+    # Choudhury S 3 %, J 2 %, MV read with 2 % of noise: the fit finds the valve, yet
+    # removes only about a fifth of an ideal valve's MSE, most of which is the noise.
+    cfg = load_loop(config_file('concentration_loop.yaml'), 'deadband', overrides={
+        'valve': {'model': 'choudhury', 'S': 3.0, 'J': 2.0},
+        'noise': {'pv_std': 0.02, 'mv_std': 2.0, 'seed': 1000}})
+    d = simulate_loop(cfg)
+    path = tmp_path / 'noisy.csv'
+    write_csv(path, {k: d[k] for k in ('t', 'sp', 'op', 'mv', 'pv')})
+    rep = analyze_file(AnalyzeOptions(input=str(path))).report
+    st, best = rep['stiction'], min(rep['fits'], key=lambda f: f['mse'])
+    assert best['improvement'] < 0.5 and abs(best['J'] - 2.0) < 0.3
+    assert abs(best['mv_noise_var'] - 4.0) < 0.8
+    assert st['detected'] is None and st['cannot_tell'] == 'noisy_mv'
+    assert 'fits MV down to its noise' in st['reason'] and 'play' not in st
+    # The same fit with a reading that leaves misfit beyond its noise: no stiction.
+    rough = {**best, 'mv_noise_var': best['mse'] / 2}
+    assert combine(None, {}, [rough])['detected'] is False
+
+
 def test_without_stiction_the_caution_says_a_band_may_be_missed():
     from types import SimpleNamespace
     from stiction_ros.analysis.caution import sampling_caution

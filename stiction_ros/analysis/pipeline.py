@@ -15,6 +15,7 @@ import numpy as np
 from stiction_ros.analysis.caution import sampling_caution, valve_sampling_caution
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, probability_text
 from stiction_ros.analysis.detection.detect import answer_of, reason_of
+from stiction_ros.analysis.detection.resolve import robust_noise
 from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
@@ -112,6 +113,7 @@ def fit_models(record, options, progress=None):
             fit = identify(op, mv, model, segs, ts, filter_values=fv, progress=progress)
         ideal = ideal_valve_mse(op, mv, segs)
         fit.extra['ideal_valve_mse'] = ideal
+        fit.extra['mv_noise_var'] = mv_noise_var(mv, segs)
         fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)
@@ -122,6 +124,11 @@ def ideal_valve_mse(op, mv, segments):
     """Return the MSE of an ideal valve (MV = OP within 0-100 %): the fits' yardstick."""
     err = np.concatenate([np.clip(op[a:b], 0, 100) - mv[a:b] for a, b in segments])
     return float(np.mean(err ** 2))
+
+
+def mv_noise_var(mv, segments):
+    """Return MV's white-noise variance from its sample-to-sample changes (MAD)."""
+    return robust_noise(np.concatenate([mv[a:b] for a, b in segments])) ** 2
 
 
 def predict(model, fit, op, mv, segments, sample_time):

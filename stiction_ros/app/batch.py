@@ -263,8 +263,9 @@ def _why_not(st: dict) -> str:
     if det.get('balanced'):
         return 'evidence balanced'
     code = (det.get('judgeable') or {}).get('code')
-    if st.get('cannot_tell') == 'slip_unresolved':
-        return 'slip jump unresolved'
+    fits_say = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise'}
+    if st.get('cannot_tell') in fits_say:
+        return fits_say[st['cannot_tell']]
     if code:
         return code.replace('_', ' ')
     # No check named: the reason's first words say more than a bare "other".

@@ -82,8 +82,11 @@ def _verdict(report: dict) -> list:
                f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP), and '
                f'the 95 % range of its slip jump J starts at or above {num(MIN_J)} %. Such a '
                'band without a jump is play (a deadband or backlash): no stiction where J '
-               'stays under that, cannot tell where its range straddles it. The score is '
-               'the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>), 0 for play.')
+               'stays under that, cannot tell where its range straddles it. Stick-slip '
+               'that fits MV to within 1.5 times its own noise variance but removes less '
+               'than that share of the MSE (the noise is most of it) is cannot tell too. '
+               'The score is the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>), 0 '
+               'for play and for cannot tell.')
     elif st.get('probability') is not None:
         # As the reason under it and the terminal print it: two decimals, three in the tails.
         shown = probability_text(st['probability'], DETECTOR_BAND)
