@@ -62,7 +62,7 @@ def test_the_notes_reconcile_the_verdict_and_weigh_a_worse_held_out_fit(loop, tm
     report['stiction']['detected'], m['friction'] = False, True
     assert 'claims stiction from the valve position itself' in _mismatch_lines(report)
     report['stiction']['detected'] = None
-    assert ('cannot tell stick-slip from play in valve models without dead time'
+    assert ('cannot tell from valve models without dead time, lead or calibration'
             in _mismatch_lines(report))
     # The headline says stiction where --explain finds play only: said too.
     report['stiction']['detected'], m['friction'], m['friction_kind'] = True, False, 'backlash'

@@ -286,8 +286,7 @@ def _mismatch_lines(report):
     if report['stiction'].get('detected') is not True and m.get('friction') is True:
         told = ('reads OP and PV and valve models without dead time, lead or calibration'
                 if report['stiction'].get('detected') is False else
-                'cannot tell stick-slip from play in valve models without dead time, lead '
-                'or calibration')
+                'cannot tell from valve models without dead time, lead or calibration')
         line += (f'\nnote: the verdict above {told}; --explain, with the timing and '
                  'calibration it found in place, claims stiction from the valve position '
                  'itself, held out')
