@@ -12,10 +12,10 @@ beside a network of twice its width and the same depth, random weights, for
 timing only: what a wider network (docs/DETECTION_LOG.md) would cost every analysis.
 The Hammerstein fit's lag sums, most of its time, are timed on each record's
 regression (one valve path) as the fits compute them and as first written,
-row by row (the same bits, counted).  The prediction-error figures are timed
-as computed (one Gram matrix per noise model shared by every dead time) and
-with one least-squares solve per window, as first written (the same figures
-to 1e-12, counted).  Last, the full Hammerstein S/J fit the
+row by row (the same bits, counted).  The prediction-error fits of each record's
+valve paths are timed as computed (one Gram matrix per noise model shared by
+every dead time) and with one least-squares solve per window, as first
+written (the same residuals to 1e-12, counted).  Last, the full Hammerstein S/J fit the
 analysis runs beside the verdict (``quantify``), which once had a timed
 assertion in the tests; timings belong here.
 Training time is in docs/ACCURACY.md (it comes with the model file).
@@ -31,7 +31,7 @@ from stiction_ros.analysis.detection import cnn, detect, extract, load_model, st
 from stiction_ros.analysis.detection.features import HAM_MAX_DELAY
 from stiction_ros.analysis.detection.output_error import sticky_paths, target
 from stiction_ros.analysis.detection.prediction_error import _lags, _noise_filter, \
-    _Predictor, NOISE_C, PE_DELAYS, prediction_error_figures, SKIP
+    _Predictor, NOISE_C, PE_DELAYS, SKIP
 from stiction_ros.analysis.detection.timing import alignment
 from stiction_ros.analysis.hammerstein import quantify
 from stiction_ros.analysis.hammerstein.problem import HammersteinProblem
@@ -58,7 +58,7 @@ STEPS = {'old_rule': 'old rule: oscillation + signatures (baseline)',
          'network_wide': 'a 64-channel network of the same depth (timing only)',
          'lag_sums': 'Hammerstein lag sums of one valve path, lag by lag (in the detector)',
          'lag_sums_rows': 'the same sums row by row, as first written (same bits)',
-         'pe_fit': 'prediction-error figures, 37 valve paths (in the detector)',
+         'pe_fit': 'prediction-error fits of the 37 valve paths (in the detector)',
          'pe_fit_lstsq': 'the same with one least-squares call per window, as first written',
          'quantify': 'full Hammerstein S/J fit (the analysis runs it beside the verdict)'}
 
@@ -99,16 +99,10 @@ def rss_lstsq(fit: _Predictor, path: np.ndarray) -> float:
     return best
 
 
-def pe_ratio_lstsq(op: np.ndarray, pv: np.ndarray, integrating: bool) -> float:
-    """Return ``prediction_error_figures``'s ratio, fitted by :func:`rss_lstsq`."""
+def _pe_paths(op, pv, integrating):
+    # The fit and the valve paths prediction_error_figures compares: linear, then sticky.
     y, u = target(op, pv, integrating)
-    if len(y) < 4 * SKIP:
-        return float('nan')
-    fit = _Predictor(y)
-    linear = rss_lstsq(fit, u)
-    if not linear > 0:
-        return float('nan')
-    return min(rss_lstsq(fit, p) for _, p in sticky_paths(u, np.asarray(op))) / linear
+    return _Predictor(y), [u] + [p for _, p in sticky_paths(u, np.asarray(op))]
 
 
 def law_profile_lstsq(op, pv, sp) -> np.ndarray:
@@ -170,12 +164,12 @@ def bench_detector(best_time, folder=LOOPS):
         out['network_wide'].append(best_time(lambda: cnn.symmetric_logit(wide, ch, integ)))
         regressions.append(_lag_sum_args(x['op'], x['pv'], integ))
         held.append((x['op'], x['pv'], rec.sample_time, integ))
-        pe_args = (x['op'], x['pv'], integ)
-        out['pe_fit'].append(best_time(lambda: prediction_error_figures(*pe_args)))
-        out['pe_fit_lstsq'].append(best_time(lambda: pe_ratio_lstsq(*pe_args)))
-        out['same_pe'].append(bool(np.isclose(prediction_error_figures(*pe_args)[0],
-                                              pe_ratio_lstsq(*pe_args), rtol=1e-12,
-                                              atol=0.0, equal_nan=True)))
+        fit, paths = _pe_paths(x['op'], x['pv'], integ)
+        out['pe_fit'].append(best_time(lambda: [fit.rss(p)[0] for p in paths]))
+        out['pe_fit_lstsq'].append(best_time(lambda: [rss_lstsq(fit, p) for p in paths]))
+        out['same_pe'].append(bool(np.allclose([fit.rss(p)[0] for p in paths],
+                                               [rss_lstsq(fit, p) for p in paths],
+                                               rtol=1e-12, atol=0.0)))
         out['samples'].append(len(x['op']))
     # Last: both are built ahead of time, as the detector's kernels are, but an
     # argument off their signatures would load numba, whose code for this
@@ -233,9 +227,9 @@ def markdown(r):
             'records). Summed lag by lag, the Hammerstein lag sums take '
             f'{med["lag_sums"] / med["lag_sums_rows"]:.2f} of the time they took row by row '
             f'(median; the same sums to the bit on {sum(r["same_sums"])} of '
-            f'{len(r["same_sums"])} records). The prediction-error figures take '
+            f'{len(r["same_sums"])} records). The prediction-error fits take '
             f'{med["pe_fit"] / med["pe_fit_lstsq"]:.2f} of the time one least-squares call per '
-            f'window took (median; the same ratio to 1e-12 on {sum(r["same_pe"])} of '
+            f'window took (median; the same residuals to 1e-12 on {sum(r["same_pe"])} of '
             f'{len(r["same_pe"])} records). The wider network would cost '
             f'{med["network_wide"] / med["network"]:.1f} times the shipped one (median), in '
             "every analysis and in the study's network logits.", MARKERS[1]]

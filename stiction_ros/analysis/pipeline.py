@@ -102,6 +102,7 @@ def fit_models(record, options, progress=None):
     segs = record.valve_segments(min_samples=2)
     ts = record.sample_time
     fits, predictions = [], {}
+    ideal, noise = ideal_valve_mse(op, mv, segs), mv_noise_var(mv, segs)
     for model in options.models:
         if options.S is not None:
             fit = given_fit(op, mv, model, options.S, options.J, segs, ts)
@@ -111,9 +112,8 @@ def fit_models(record, options, progress=None):
                 fv = ([t * ts for t in FILTER_TAUS] if model == 'kano'
                       else [1.0, 0.8, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1])
             fit = identify(op, mv, model, segs, ts, filter_values=fv, progress=progress)
-        ideal = ideal_valve_mse(op, mv, segs)
         fit.extra['ideal_valve_mse'] = ideal
-        fit.extra['mv_noise_var'] = mv_noise_var(mv, segs)
+        fit.extra['mv_noise_var'] = noise
         fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)

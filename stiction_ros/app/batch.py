@@ -34,6 +34,8 @@ RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap')
 # Not read, but listed: each gets a row saying to save its sheet as CSV, rather
 # than a folder's workbook vanishing from the batch without a word.
 WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
+# With MV, the fits' own reasons to answer cannot tell, in a tally's words.
+FITS_CANNOT_TELL = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise'}
 
 
 def _is_bag(path):
@@ -263,9 +265,8 @@ def _why_not(st: dict) -> str:
     if det.get('balanced'):
         return 'evidence balanced'
     code = (det.get('judgeable') or {}).get('code')
-    fits_say = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise'}
-    if st.get('cannot_tell') in fits_say:
-        return fits_say[st['cannot_tell']]
+    if st.get('cannot_tell') in FITS_CANNOT_TELL:
+        return FITS_CANNOT_TELL[st['cannot_tell']]
     if code:
         return code.replace('_', ' ')
     # No check named: the reason's first words say more than a bare "other".
