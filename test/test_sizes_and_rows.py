@@ -140,7 +140,7 @@ def test_evidence_words_say_what_the_figures_say():
     assert 'to +3.78, which the calibration map reads as a probability of 0.95)' in line
     fit = {'model': 'kano', 'S': 2.98, 'J': 0.0, 'mse': 1.3, 'S_interval': [2.74, 3.96],
            'improvement': 0.53}
-    assert '(95 % range 2.74-3.96)' in from_fits([fit])[3]
+    assert '(95 % range 2.74-3.96)' in from_fits([fit]).reason
 
 
 def test_a_record_judged_on_part_of_its_valid_samples_says_so():

@@ -28,6 +28,8 @@ the threshold are the ones whose cross-validated accuracy on the real plant
 loops is in ``docs/ACCURACY.md``.
 """
 
+from dataclasses import dataclass
+
 from stiction_ros.analysis.measures.still import SetPointTest, Still
 from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
@@ -43,12 +45,49 @@ THRESHOLD = 0.5
 WITHOUT_OSCILLATION = ('slip_events',)
 
 
-def from_fits(fits):
+@dataclass(frozen=True)
+class FitVerdict:
     """
-    Return what the fits say: (detected, score, S, reason, play, code).
+    What the valve fits say about a measured valve position.
 
-    ``play`` is the S of a band without a slip jump (else None); ``code`` names
-    why the answer is ``cannot tell`` (else None).
+    Attributes
+    ----------
+    detected : bool or None
+        True for stiction, False for none, None for ``cannot tell``.
+    score : float
+        The share of an ideal valve's MSE the best fit removes (0-1), 0
+        where the answer rests on no stick-slip.
+    size : float
+        The best fit's S (% of span).
+    reason : str
+        The sentence the report prints.
+    play : float or None
+        The S of a band without a slip jump, else None.
+    code : str or None
+        Why the answer is ``cannot tell`` (``noisy_mv``,
+        ``slip_unresolved``), else None.
+
+    """
+
+    detected: bool | None
+    score: float
+    size: float
+    reason: str
+    play: float | None = None
+    code: str | None = None
+
+
+def from_fits(fits: list[dict]) -> FitVerdict:
+    """
+    Return what the fits say about stiction, from the fit of least MSE.
+
+    Parameters
+    ----------
+    fits : list of dict
+        Each model's fit as the report writes it: ``model``, ``S``, ``J``,
+        ``mse`` and, where known, ``S_interval``, ``J_interval``,
+        ``improvement`` and ``mv_noise_var``.
+
     """
     best = min(fits, key=lambda f: f['mse'])
     improvement = best.get('improvement')
@@ -70,28 +109,28 @@ def from_fits(fits):
             and noise and best['mse'] <= NOISE_FIT * noise):
         # Stick-slip that fits down to the reading's noise, where the noise is most of
         # what an ideal valve misses too: the share it removes says nothing then.
-        return None, 0.0, best['S'], (
+        return FitVerdict(None, 0.0, best['S'], (
             f'stick-slip (S = {best["S"]:.2f} %{ranged}, J = {best["J"]:.2f} %{j_ranged}) '
             f'fits MV down to its noise (MSE {best["mse"]:.4g}, against {noise:.4g} from its '
             'sample-to-sample changes), but that noise is most of what an ideal valve '
             f'misses too, so the fit removes only {100 * improvement:.0f} % of its MSE '
             f'(under {100 * MIN_IMPROVEMENT:.0f} %): stick-slip under a noisy reading, or a '
             'lag, dead time or calibration the plain models leave out; --explain tests '
-            f'friction against a valve without it, held out; {why}'), None, 'noisy_mv'
+            f'friction against a valve without it, held out; {why}'), code='noisy_mv')
     if not banded or detected:
-        return detected, score, best['S'], why, None, None
+        return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
     if j_hi < MIN_J:
-        return False, 0.0, best['S'], (
+        return FitVerdict(False, 0.0, best['S'], (
             f'play of {best["S"]:.2f} % without a slip jump: J = {best["J"]:.2f} %{j_ranged} '
             f'is under {MIN_J:g} %, so once OP has taken up the play the valve moves '
             'smoothly (a deadband or backlash: a worn linkage, a positioner deadband, or '
             f'friction whose static and kinetic forces are equal), not stick-slip; {why}'
-        ), best['S'], None
-    return None, 0.0, best['S'], (
+        ), play=best['S'])
+    return FitVerdict(None, 0.0, best['S'], (
         f'a band of {best["S"]:.2f} % whose slip jump cannot be told from none: J = '
         f'{best["J"]:.2f} %{j_ranged} reaches below {MIN_J:g} %, so stick-slip and play '
-        f'without it (a deadband or backlash) fit alike; {why}'), None, 'slip_unresolved'
+        f'without it (a deadband or backlash) fit alike; {why}'), code='slip_unresolved')
 
 
 def from_signatures(osc, sigs, weights=None, threshold=None):
@@ -140,12 +179,12 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
         apparent = ell.value
     extra = {}
     if fits:
-        detected, score, size, why, play, code = from_fits(fits)
-        apparent = size
-        if play is not None:
-            extra['play'] = play
-        if code is not None:
-            extra['cannot_tell'] = code
+        told = from_fits(fits)
+        detected, score, why, apparent = told.detected, told.score, told.reason, told.size
+        if told.play is not None:
+            extra['play'] = told.play
+        if told.code is not None:
+            extra['cannot_tell'] = told.code
     else:
         vote = from_signatures(osc, sigs)
         extra['signature_vote'] = {'detected': vote[0], 'score': round(float(vote[1]), 4),
