@@ -17,6 +17,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.mismatch import instrument as ins
+from stiction_ros.analysis.without_friction import TAU_GRID
 from stiction_ros.kernels.chain import limited
 
 
@@ -41,7 +42,7 @@ def fit_frictionless(op: np.ndarray, mv: np.ndarray, segments, sample_time: floa
     d_axis = (np.unique(np.r_[np.arange(0.0, min(d_max, 4.0) + 1e-9, 0.25),
                               np.arange(4.0, d_max + 1e-9, 1.0)])
               if 'delay' in free else np.zeros(1))
-    t_axis = [t for t in ins.TAU_GRID if t <= tau_max] if 'tau' in free else [0.0]
+    t_axis = [t for t in TAU_GRID if t <= tau_max] if 'tau' in free else [0.0]
     best = math.inf
     for d in d_axis:
         for tau in t_axis:

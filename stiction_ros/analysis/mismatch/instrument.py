@@ -29,6 +29,8 @@ from stiction_ros.analysis.identify import identify, plausible_box, wider_s
 from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUTION, \
     start_positions
 from stiction_ros.analysis.mismatch.stats import curvature_errors
+# The limits, grid and dead-time shift the verdict's own frictionless valve uses too.
+from stiction_ros.analysis.without_friction import indices, limits, shift
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.kernels.chain import limited
 
@@ -46,13 +48,8 @@ PLAUSIBLE = {'delay': 0.1, 'tau': 0.2, 'tau2': 0.2, 'offset': 0.1, 'gain': 0.005
 # A rate limit or a travel stop must act on this many samples to be named (a few OP
 # steps turned into ramps; a limiter no step reaches is no stage).
 ACTIVE_SAMPLES = 8
-# Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
-# an actuator a minute late is a broken loop, not a calibration question.
-MAX_DELAY = (60.0, 30.0)
-MAX_LAG = (60.0, 120.0)
 SEARCH_RESOLUTION = 0.01
 LAG_TRIES = (0.5, 1.0, 2.0, 3.0, 5.0, 8.0)
-TAU_GRID = (0.0, 0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.0, 9.0, 14.0, 20.0, 30.0, 45.0, 60.0)
 
 
 @dataclass
@@ -77,33 +74,6 @@ class ChainFit:
     def mse(self) -> float:
         """Mean squared error on the fitted part."""
         return self.sse / self.n
-
-
-def limits(sample_time: float) -> tuple[float, float]:
-    """Return the largest dead time and lag (samples) looked for at ``sample_time``."""
-    return (min(MAX_DELAY[0], MAX_DELAY[1] / sample_time),
-            min(MAX_LAG[0], MAX_LAG[1] / sample_time))
-
-
-def shift(x: np.ndarray, d: float, segments) -> np.ndarray:
-    """
-    Return ``x`` delayed by ``d`` samples (linear interpolation) within each run.
-
-    A run is a segment, or several joined across gaps where ``x`` is known
-    (``fit_core.carried_runs``): a dead time reads OP from a gap in MV.
-    """
-    out = np.array(x, dtype=np.float64, copy=True)
-    if d == 0.0:
-        return out
-    for a, b in carried_runs(segments, x):
-        # A negative d (a fraction of a sample) reads ahead; the last value is held.
-        pos = np.clip(np.arange(b - a) - d, 0.0, b - a - 1)
-        i0 = np.floor(pos).astype(np.int64)
-        frac = pos - i0
-        i1 = np.minimum(i0 + 1, b - a - 1)
-        seg = np.asarray(x[a:b], dtype=np.float64)
-        out[a:b] = seg[i0] * (1.0 - frac) + seg[i1] * frac
-    return out
 
 
 def lag(x: np.ndarray, tau: float, segments) -> np.ndarray:
@@ -133,11 +103,6 @@ def affine(y: np.ndarray, mv: np.ndarray, idx: np.ndarray, offset: bool,
         c0, c1 = 0.0, 1.0
     r = mm - c0 - c1 * yy
     return float(c0), float(c1), float(r @ r)
-
-
-def indices(segments) -> np.ndarray:
-    """Return the sample indices covered by ``segments``."""
-    return np.concatenate([np.arange(a, b) for a, b in segments])
 
 
 def friction_output(u: np.ndarray, segments, S: float, J: float, y: np.ndarray) -> np.ndarray:

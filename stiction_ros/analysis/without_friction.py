@@ -1,0 +1,140 @@
+"""
+The valve without friction that the verdict with MV weighs a claim against.
+
+A real position reading differs from OP first through timing and its
+instruments: it follows OP late (dead time), through an actuator or
+transmitter lag, reading a little off in offset and gain.  Before the
+verdict calls the misfit of an ideal valve friction, or its absence, it fits
+that chain to MV::
+
+    OP -> dead time d -> first-order lag tau -> offset + gain * position -> MV
+
+on a grid of ``d`` (quarter samples up to 4, whole samples beyond) and
+``tau`` (:data:`TAU_GRID`), then refines both by a compass search, with
+offset and gain solved in closed form at every point.  Numpy and the built lag
+kernel only: the default analysis loads no scipy.  ``--explain`` fits the
+fuller chain (a second lag, a rate limit, travel stops) with scipy's
+optimisers, from the same limits, grid and dead-time shift
+(:mod:`stiction_ros.analysis.mismatch.instrument`).
+"""
+
+import math
+
+import numpy as np
+
+from stiction_ros.analysis.fit_core import carried_runs
+from stiction_ros.kernels.lags import lag_from_rest
+
+# Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
+# an actuator a minute late is a broken loop, not a calibration question.
+MAX_DELAY = (60.0, 30.0)
+MAX_LAG = (60.0, 120.0)
+TAU_GRID = (0.0, 0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.0, 9.0, 14.0, 20.0, 30.0, 45.0, 60.0)
+# The compass search after the grid: at most this many moves, down to this step (samples).
+MAX_MOVES = 120
+STEP_END = 0.01
+
+
+def limits(sample_time: float) -> tuple[float, float]:
+    """Return the largest dead time and lag (samples) looked for at ``sample_time``."""
+    return (min(MAX_DELAY[0], MAX_DELAY[1] / sample_time),
+            min(MAX_LAG[0], MAX_LAG[1] / sample_time))
+
+
+def indices(segments) -> np.ndarray:
+    """Return the sample indices covered by ``segments``."""
+    return np.concatenate([np.arange(a, b) for a, b in segments])
+
+
+def shift(x: np.ndarray, d: float, segments) -> np.ndarray:
+    """
+    Return ``x`` delayed by ``d`` samples (linear interpolation) within each run.
+
+    A run is a segment, or several joined across gaps where ``x`` is known
+    (``fit_core.carried_runs``): a dead time reads OP from a gap in MV.
+    """
+    out = np.array(x, dtype=np.float64, copy=True)
+    if d == 0.0:
+        return out
+    for a, b in carried_runs(segments, x):
+        # A negative d (a fraction of a sample) reads ahead; the last value is held.
+        pos = np.clip(np.arange(b - a) - d, 0.0, b - a - 1)
+        i0 = np.floor(pos).astype(np.int64)
+        frac = pos - i0
+        i1 = np.minimum(i0 + 1, b - a - 1)
+        seg = np.asarray(x[a:b], dtype=np.float64)
+        out[a:b] = seg[i0] * (1.0 - frac) + seg[i1] * frac
+    return out
+
+
+def lagged(x: np.ndarray, tau: float, runs) -> np.ndarray:
+    """Return ``x`` through a first-order lag of ``tau`` samples, at rest at each run start."""
+    out = np.array(x, dtype=np.float64, copy=True)
+    if tau <= 0.0:
+        return out
+    p = math.exp(-1.0 / tau)
+    for a, b in runs:
+        out[a:b] = lag_from_rest(np.ascontiguousarray(out[a:b]), p)
+    return out
+
+
+def calibrated(y: np.ndarray, mv: np.ndarray, idx: np.ndarray) -> tuple[float, float, float]:
+    """Return (offset, gain, SSE) of the least-squares ``mv = offset + gain * y`` on ``idx``."""
+    yy, mm = y[idx], mv[idx]
+    ym, mm_mean = float(yy.mean()), float(mm.mean())
+    dy, dm = yy - ym, mm - mm_mean
+    syy = float(dy @ dy)
+    gain = float(dy @ dm) / syy if syy > 0.0 else 1.0
+    offset = mm_mean - gain * ym
+    r = mm - offset - gain * yy
+    return offset, gain, float(r @ r)
+
+
+def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
+                         sample_time: float) -> dict:
+    """
+    Return the best valve without friction for MV: its MSE and its stages.
+
+    Returns
+    -------
+    dict
+        ``mse`` on the segments' samples, ``dead_time_s`` and ``lag_s``
+        (seconds), ``offset`` and ``gain`` (MV = offset + gain x OP
+        through the dead time and lag).
+
+    """
+    op = np.asarray(op, dtype=np.float64)
+    mv = np.asarray(mv, dtype=np.float64)
+    idx = indices(segments)
+    runs = carried_runs(segments, op)
+    d_max, tau_max = limits(sample_time)
+    d_axis = np.unique(np.r_[np.arange(0.0, min(d_max, 4.0) + 1e-9, 0.25),
+                             np.arange(4.0, d_max + 1e-9, 1.0)])
+    t_axis = [t for t in TAU_GRID if t <= tau_max]
+    cache: dict = {}
+
+    def sse(d: float, tau: float) -> float:
+        key = (round(d, 9), round(tau, 9))
+        if key not in cache:
+            y = lagged(shift(op, d, segments), tau, runs)
+            cache[key] = calibrated(y, mv, idx)[2]
+        return cache[key]
+
+    here, d, tau = min((sse(d, t), d, t) for d in d_axis for t in t_axis)
+    step_d, step_t = 0.5, max(0.3, 0.5 * tau)
+    for _ in range(MAX_MOVES):
+        # A compass search from the grid's best: a dead time and a lag trade off along a
+        # valley, which steps that only shrink would stop short in.
+        trials = [(min(max(d + a * step_d, 0.0), d_max),
+                   min(max(tau + b * step_t, 0.0), tau_max))
+                  for a in (-1, 0, 1) for b in (-1, 0, 1) if a or b]
+        there, x, t = min((sse(x, t), x, t) for x, t in trials)
+        if there < here:
+            here, d, tau = there, x, t
+        elif step_d < STEP_END and step_t < STEP_END:
+            break
+        else:
+            step_d, step_t = step_d / 2, step_t / 2
+    offset, gain, total = calibrated(lagged(shift(op, d, segments), tau, runs), mv, idx)
+    return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
+            'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain)}

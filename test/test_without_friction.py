@@ -1,0 +1,50 @@
+"""The verdict's valve without friction: dead time, lag and calibration recovered from MV."""
+
+import numpy as np
+
+from stiction_ros.analysis.fit_core import carried_runs
+from stiction_ros.analysis.mismatch import instrument as ins
+from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
+from stiction_ros.analysis.without_friction import fit_without_friction, lagged, shift
+
+
+def _op(n=3000, seed=0):
+    # Steps and a slow wander, as a PI controller's output under set-point and load steps.
+    rng = np.random.default_rng(seed)
+    op = 50 + np.repeat(rng.uniform(-8, 8, n // 150), 150) + np.cumsum(rng.normal(0, 0.05, n))
+    return np.r_[op, np.full(n - len(op), op[-1])]
+
+
+def test_a_known_chain_is_recovered_to_its_noise():
+    op = _op()
+    segs = [(0, 1400), (1410, 3000)]
+    runs = carried_runs(segs, op)
+    # 3.4 s dead time, 6 s lag at 0.5 s sampling, reading 1.5 % high and 3 % short.
+    truth = 1.5 + 0.97 * lagged(shift(op, 6.8, segs), 12.0, runs)
+    noise = np.random.default_rng(1).normal(0, 0.05, op.size)
+    fit = fit_without_friction(op, truth + noise, segs, 0.5)
+    assert abs(fit['dead_time_s'] - 3.4) < 0.1 and abs(fit['lag_s'] - 6.0) < 0.3
+    assert abs(fit['offset'] - 1.5) < 0.2 and abs(fit['gain'] - 0.97) < 0.005
+    # Nothing left but the noise it was read with.
+    assert fit['mse'] < 1.05 * 0.05 ** 2
+
+
+def test_the_lag_kernel_is_the_filter_explain_uses():
+    op = _op(seed=2)
+    segs = [(0, 900), (905, 3000)]
+    np.testing.assert_allclose(lagged(op, 7.3, carried_runs(segs, op)),
+                               ins.lag(op, 7.3, segs), rtol=0, atol=1e-10)
+
+
+def test_the_grid_search_matches_explains_optimiser_on_the_same_stages():
+    # A valve reading through a lag that no grid point holds: the refinement must find
+    # what --explain's bounded Powell search finds on the same four stages.
+    op = _op(seed=3)
+    segs = [(0, 3000)]
+    mv = -0.8 + 1.02 * lagged(shift(op, 2.6, segs), 7.7, carried_runs(segs, op))
+    mv += np.random.default_rng(4).normal(0, 0.1, op.size)
+    light = fit_without_friction(op, mv, segs, 1.0)
+    full = fit_frictionless(op, mv, segs, 1.0, free=('delay', 'tau', 'offset', 'gain'))
+    assert light['mse'] <= 1.001 * full.mse
+    assert abs(light['dead_time_s'] - full.params['delay']) < 0.1
+    assert abs(light['lag_s'] - full.params['tau']) < 0.2
