@@ -22,7 +22,8 @@ from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, 
                                             ValveProblem)
 from stiction_ros.analysis.measures.still import set_point_test, still_valve
 from stiction_ros.analysis.record import Record, runs
-from stiction_ros.analysis.verdict import combine, refuse_still
+from stiction_ros.analysis.verdict import combine, from_fits, NOISE_FIT, refuse_still
+from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, indices
 
 MODEL_CHOICES = ('kano', 'choudhury', 'both')
 LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
@@ -117,6 +118,20 @@ def fit_models(record, options, progress=None):
         fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)
+    told = from_fits([f.to_json() for f in fits]) if fits else None
+    if told is not None and (told.detected or (
+            told.detected is False and told.play is None and 0 < NOISE_FIT * noise < ideal)):
+        # A claim of friction must beat the best valve without it, which real readings
+        # call for first (dead time, lag, calibration); so must a claim of none where
+        # an ideal valve leaves more than MV's noise.  Fitted only for those claims.
+        # Stick-slip gets the chain's calibration too (an offset and gain on its MV).
+        chain = fit_without_friction(op, mv, segs, ts)
+        idx = indices(segs)
+        for fit in fits:
+            fit.extra['frictionless'] = chain
+            pred = predictions[fit.model]
+            if np.all(np.isfinite(pred[idx])):
+                fit.extra['calibrated_mse'] = calibrated(pred, mv, idx)[2] / len(idx)
     return fits, predictions
 
 
@@ -405,7 +420,8 @@ def analyze(record: Record, options: Options | None = None,
     # A size the user gave was not fitted: nothing to caution about.
     fitted = [f for f in analysis.fits if f.source != 'given']
     if fitted:
-        sticks = bool(report['stiction']['detected'])
+        # A band fitted and reported (stiction, or cannot tell beside it) reads low alike.
+        sticks = report['stiction']['detected'] is not False
         caution = (sampling_caution(held, osc, record.sample_time, sticks) if win is not None
                    else valve_sampling_caution(record, sticks, MIN_SIGNATURE_SAMPLES))
         still = still_valve(record.signals['op'], record.signals['mv'],

@@ -39,6 +39,10 @@ MIN_IMPROVEMENT = 0.5
 MIN_J = 0.05
 # A fit whose MSE is within this factor of MV's own noise variance leaves only noise.
 NOISE_FIT = 1.5
+# The calibration a position reading can have (gain; error at mid-span, % of span) and
+# still be read as working: a frictionless valve that needs more explains nothing.
+CALIBRATION_GAIN = (0.8, 1.25)
+CALIBRATION_OFFSET = 10.0
 WEIGHTS = {'horch': 1.0, 'he_curve_fit': 1.0, 'hos_pv_op': 1.0, 'yamashita': 1.0,
            'slip_events': 1.0}
 THRESHOLD = 0.5
@@ -65,7 +69,10 @@ class FitVerdict:
         The S of a band without a slip jump, else None.
     code : str or None
         Why the answer is ``cannot tell`` (``noisy_mv``,
-        ``slip_unresolved``), else None.
+        ``slip_unresolved``, ``frictionless_fits``, ``unexplained_mv``), else None.
+    without_friction : str or None
+        The stages of the valve without friction that explains MV where the
+        answer rests on it (``no stiction``), else None.
 
     """
 
@@ -75,6 +82,7 @@ class FitVerdict:
     reason: str
     play: float | None = None
     code: str | None = None
+    without_friction: str | None = None
 
 
 def from_fits(fits: list[dict]) -> FitVerdict:
@@ -117,6 +125,20 @@ def from_fits(fits: list[dict]) -> FitVerdict:
             f'(under {100 * MIN_IMPROVEMENT:.0f} %): stick-slip under a noisy reading, or a '
             'lag, dead time or calibration the plain models leave out; --explain tests '
             f'friction against a valve without it, held out; {why}'), code='noisy_mv')
+    chain = best.get('frictionless')
+    if (detected and chain and plausible(chain)
+            and _stick_slip_mse(best) > (1.0 - MIN_IMPROVEMENT) * chain['mse']):
+        return _without_friction(best, chain, noise, why)
+    if (not detected and chain and noise
+            and min(chain['mse'], _stick_slip_mse(best)) > NOISE_FIT * noise):
+        # No stiction is a claim too: that a valve without friction explains MV.
+        return FitVerdict(None, 0.0, best['S'], (
+            f'neither stick-slip (MSE {_stick_slip_mse(best):.4g}, its position calibrated) '
+            f'nor a valve without friction ({chain_words(chain)}, MSE {chain["mse"]:.4g}) '
+            f'fits MV down to its noise ({noise:.4g} from its sample-to-sample changes, '
+            f'{NOISE_FIT:g} times that allowed): friction behind a dead time or calibration '
+            'that the plain models leave out, or an effect neither has; --explain fits them '
+            f'together; {why}'), code='unexplained_mv')
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
@@ -131,6 +153,55 @@ def from_fits(fits: list[dict]) -> FitVerdict:
         f'a band of {best["S"]:.2f} % whose slip jump cannot be told from none: J = '
         f'{best["J"]:.2f} %{j_ranged} reaches below {MIN_J:g} %, so stick-slip and play '
         f'without it (a deadband or backlash) fit alike; {why}'), code='slip_unresolved')
+
+
+def plausible(chain: dict) -> bool:
+    """
+    Return whether a frictionless valve's calibration is one a reading can have.
+
+    A gain outside ``CALIBRATION_GAIN``, or a reading off by more than
+    ``CALIBRATION_OFFSET`` at mid-span, is a positioner fault, and a chain
+    that needs one to fit is imitating something else (a limit cycle sampled
+    too coarsely, friction): no explanation without friction.
+    """
+    lo, hi = CALIBRATION_GAIN
+    mid = chain['offset'] + (chain['gain'] - 1.0) * 50.0
+    return lo <= chain['gain'] <= hi and abs(mid) <= CALIBRATION_OFFSET
+
+
+def chain_words(chain: dict) -> str:
+    """Return the stages of a frictionless valve (``fits[].frictionless``) in words."""
+    words = []
+    if chain['dead_time_s'] > 0.0:
+        words.append(f'dead time {chain["dead_time_s"]:.2g} s')
+    if chain['lag_s'] > 0.0:
+        words.append(f'lag {chain["lag_s"]:.2g} s')
+    if abs(chain['offset']) >= 0.1 or abs(chain['gain'] - 1.0) >= 0.005:
+        words.append(f'MV = {chain["offset"]:.2f} + {chain["gain"]:.3f} x OP')
+    return ', '.join(words) or 'MV = OP'
+
+
+def _stick_slip_mse(fit: dict) -> float:
+    """Return the fit's MSE, or less where a calibration (offset, gain) on its MV helps."""
+    return min(fit['mse'], fit.get('calibrated_mse', fit['mse']))
+
+
+def _without_friction(best: dict, chain: dict, noise: float | None, why: str) -> FitVerdict:
+    # Stick-slip beat an ideal valve, but not a valve with the timing and calibration
+    # a real reading has: friction is not shown until it beats that one too.
+    stages, F, K = chain_words(chain), chain['mse'], _stick_slip_mse(best)
+    if noise and F <= NOISE_FIT * noise and F < K:
+        return FitVerdict(False, 0.0, best['S'], (
+            f'a valve without friction ({stages}) fits MV down to its noise (MSE {F:.4g}, '
+            f'against {noise:.4g} from its sample-to-sample changes), better than stick-slip '
+            f'(MSE {K:.4g}): what an ideal valve misses is timing or calibration, '
+            f'not friction; {why}'), without_friction=stages)
+    return FitVerdict(None, 0.0, best['S'], (
+        f'stick-slip fits MV with MSE {K:.4g} (its position calibrated), but a valve without '
+        f'friction ({stages}) fits it with MSE {F:.4g}, and stick-slip removes under '
+        f'{100 * MIN_IMPROVEMENT:.0f} % of that: friction is not shown over timing and '
+        'calibration; --explain fits friction with them and tests both on held-out data; '
+        f'{why}'), code='frictionless_fits')
 
 
 def from_signatures(osc, sigs, weights=None, threshold=None):
@@ -185,6 +256,8 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
             extra['play'] = told.play
         if told.code is not None:
             extra['cannot_tell'] = told.code
+        if told.without_friction is not None:
+            extra['without_friction'] = told.without_friction
     else:
         vote = from_signatures(osc, sigs)
         extra['signature_vote'] = {'detected': vote[0], 'score': round(float(vote[1]), 4),

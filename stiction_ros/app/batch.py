@@ -35,7 +35,9 @@ RECORDING_SUFFIXES = ('.csv', '.txt', '.tsv', '.mcap')
 # than a folder's workbook vanishing from the batch without a word.
 WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
 # With MV, the fits' own reasons to answer cannot tell, in a tally's words.
-FITS_CANNOT_TELL = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise'}
+FITS_CANNOT_TELL = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise',
+                    'frictionless_fits': 'frictionless valve fits',
+                    'unexplained_mv': 'MV unexplained'}
 
 
 def _is_bag(path):

@@ -186,6 +186,9 @@ def size_text(report: dict) -> str:
                     f'found in place: {sized[0]}); the plain fit, which leaves it out: '
                     f'{text}, ranges that hold only if it were right')
         m = report.get('mismatch') or {}
+        if st.get('without_friction') and not m:
+            text += (f'; a valve without friction ({st["without_friction"]}) explains MV: '
+                     'this is what a friction model makes of it, not a friction size')
         if m.get('friction') is False:
             # Held out, no stick-slip beat the valve without it: the fit's S and J are what
             # a friction model makes of the rest, however narrow their range.
