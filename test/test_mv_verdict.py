@@ -69,7 +69,11 @@ def test_a_lagged_miscalibrated_reading_of_a_healthy_valve_is_not_called_stictio
     sizes = truth['sizes']
     assert abs(chain['lag_s'] - sizes['response_lag']) < 0.5
     assert abs(chain['gain'] - sizes['positioner_calibration']['gain']) < 0.02
-    assert 'not a friction size' in size_text(report)
+    assert 'not a friction size' in size_text(report) and st['apparent_S'] is None
+    html = tmp_path / 'loop.html'
+    analyze_file(AnalyzeOptions(input=str(path), html_path=str(html)))
+    assert 'explains MV: the fits&rsquo; S and J below are what a friction model' in \
+        html.read_text()
     sticky = read(Run('clean_sticky', 600001, 0.5, 1.0, 0.0))
     assert sticky['answer'] == sticky['old'] == 'stiction'
 

@@ -257,7 +257,9 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
         if told.code is not None:
             extra['cannot_tell'] = told.code
         if told.without_friction is not None:
+            # The fitted S is what a friction model makes of timing: no size to stand by.
             extra['without_friction'] = told.without_friction
+            apparent = None
     else:
         vote = from_signatures(osc, sigs)
         extra['signature_vote'] = {'detected': vote[0], 'score': round(float(vote[1]), 4),

@@ -113,6 +113,10 @@ def _verdict(report: dict) -> list:
             else f'; apparent S {num(st["apparent_S"], 3, "%")}')
     out = [f'<p class="verdict">{verdict} &mdash; {strength}{size}</p>',
            f'<p>{clean(st.get("reason", ""))}</p>']
+    if st.get('without_friction'):
+        out.append(f'<p>A valve without friction ({e(st["without_friction"])}) explains MV: '
+                   'the fits&rsquo; S and J below are what a friction model makes of it, not '
+                   'a friction size.</p>')
     sized = explained_size(report)
     if sized:
         name, s, j = sized
