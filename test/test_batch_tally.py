@@ -27,6 +27,12 @@ def test_why_not_names_balanced_evidence_or_the_check_failed():
                                '0.20 % (95 % range 0.02-0.40) ...'}) == 'slip jump unresolved'
     assert _why_not({'cannot_tell': 'noisy_mv', 'reason': 'stick-slip (S = 3 %, ...'}) == \
         'MV noise'
+    # A valve without friction fits as well, or neither it nor stick-slip explains MV.
+    assert _why_not({'cannot_tell': 'frictionless_fits',
+                     'reason': 'stick-slip fits MV with MSE 0.3 ...'}) == \
+        'frictionless valve fits'
+    assert _why_not({'cannot_tell': 'unexplained_mv', 'reason': 'neither stick-slip ...'}) == \
+        'MV unexplained'
 
 
 def test_the_tally_breaks_cannot_tell_down_and_survives_rows_without_a_reason(capsys):
