@@ -39,6 +39,10 @@ def test_stick_slip_must_beat_the_best_valve_without_friction_too():
     assert st['detected'] is True and st['score'] == 0.8
 
 
+def rough_chain():
+    return {**CHAIN, 'mse': 0.4}
+
+
 def test_no_stiction_needs_a_valve_that_explains_mv():
     flat = {**STICK_SLIP, 'S': 0.1, 'S_interval': [0.0, 0.3], 'improvement': 0.1, 'mse': 0.5}
     assert from_fits([flat]).detected is False
@@ -48,8 +52,26 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     told = from_fits([{**flat, 'frictionless': {**CHAIN, 'mse': 0.4}}])
     assert told.detected is None and told.code == 'unexplained_mv'
     assert 'neither stick-slip' in told.reason
-    assert chain_words({**CHAIN, 'dead_time_s': 0.0, 'lag_s': 0.0, 'offset': 0.0,
-                        'gain': 1.0}) == 'MV = OP'
+    # Only a valve without friction explains: stick-slip fitting to the noise does not,
+    told = from_fits([{**flat, 'S': 3.0, 'S_interval': [2.8, 3.2], 'improvement': 0.3,
+                       'calibrated_mse': 0.012, 'frictionless': {**CHAIN, 'mse': 0.4}}])
+    assert told.code == 'unexplained_mv' and 'stick-slip with its position calibrated' in \
+        told.reason
+    # nor one that needs a reading 30 % off to fit,
+    told = from_fits([{**flat, 'frictionless': {**CHAIN, 'gain': 1.6}}])
+    assert told.code == 'unexplained_mv' and 'no working reading has' in told.reason
+    # nor one that stick-slip with a clear band and jump fits better, if by under half;
+    clear = {**flat, 'S': 3.0, 'S_interval': [2.8, 3.2], 'improvement': 0.3, 'mse': 0.02}
+    near = {**CHAIN, 'mse': 0.014}
+    told = from_fits([{**clear, 'calibrated_mse': 0.011, 'frictionless': near}])
+    assert told.code == 'frictionless_fits' and 'nor does the valve without' in told.reason
+    assert from_fits([{**clear, 'calibrated_mse': 0.015, 'frictionless': near}]).detected \
+        is False
+    # and play is answered from the band, whatever chain a caller attached.
+    play = {**STICK_SLIP, 'J': 0.0, 'J_interval': [0.0, 0.01], 'frictionless': rough_chain()}
+    assert from_fits([play]).play == 3.0
+    assert chain_words({**CHAIN, 'dead_time_s': 0.0, 'lag_s': 12.5, 'offset': 0.0,
+                        'gain': 1.0}) == 'lag 12.5 s'
 
 
 def test_a_lagged_miscalibrated_reading_of_a_healthy_valve_is_not_called_stiction(tmp_path):
@@ -76,6 +98,9 @@ def test_a_lagged_miscalibrated_reading_of_a_healthy_valve_is_not_called_stictio
         html.read_text()
     sticky = read(Run('clean_sticky', 600001, 0.5, 1.0, 0.0))
     assert sticky['answer'] == sticky['old'] == 'stiction'
+    # Sizes the user gave are their model: no valve without friction is weighed against it.
+    given = analyze_file(AnalyzeOptions(input=str(path), S=2.0, J=1.0)).report
+    assert all('frictionless' not in f for f in given['fits'])
 
 
 def test_the_study_tallies_every_rule_on_the_same_records():

@@ -48,3 +48,16 @@ def test_the_grid_search_matches_explains_optimiser_on_the_same_stages():
     assert light['mse'] <= 1.001 * full.mse
     assert abs(light['dead_time_s'] - full.params['delay']) < 0.1
     assert abs(light['lag_s'] - full.params['tau']) < 0.2
+
+
+def test_op_past_the_valve_stops_and_a_long_record():
+    # OP winds up past 100 % and below 0: the valve sits at its stops, as an ideal one does.
+    op = np.r_[_op(seed=5), np.linspace(50, 115, 400), np.full(300, 115.0),
+               np.linspace(115, -10, 600), np.full(200, -10.0)]
+    op = np.tile(op, 6)       # 27 000 samples: the search reads the first 20 000
+    segs = [(0, op.size)]
+    mv = np.clip(shift(op, 2.0, segs), 0, 100)
+    mv += np.random.default_rng(6).normal(0, 0.1, op.size)
+    fit = fit_without_friction(op, mv, segs, 1.0)
+    assert abs(fit['dead_time_s'] - 2.0) < 0.05 and abs(fit['gain'] - 1.0) < 0.005
+    assert fit['mse'] < 1.05 * 0.1 ** 2

@@ -40,7 +40,8 @@ def sampling_caution(held: dict, osc, sample_time: float, sticks: bool,
     than 10 samples has its turning points, where the valve sticks and
     slips, between samples.  Table 2.1's loop with S 5 %, J 2 % (a 144 s
     cycle) fitted 4.71 % at 18 s and 2.89 % at 60 s, each 95 % range short
-    of 5 %.  ``sticks``: the fits found stiction, so its band reads low;
+    of 5 %.  ``sticks``: the fits report a band (stiction, or cannot tell
+    beside one), so it reads low;
     otherwise a band this sampling cannot resolve may have been missed.
     ``pv_name``: what ``held['pv']`` holds (MV where the record has no PV).
     """

@@ -22,7 +22,8 @@ from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, 
                                             ValveProblem)
 from stiction_ros.analysis.measures.still import set_point_test, still_valve
 from stiction_ros.analysis.record import Record, runs
-from stiction_ros.analysis.verdict import combine, from_fits, NOISE_FIT, refuse_still
+from stiction_ros.analysis.verdict import combine, from_fits, NOISE_FIT, plausible, \
+    refuse_still
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, indices
 
 MODEL_CHOICES = ('kano', 'choudhury', 'both')
@@ -118,12 +119,13 @@ def fit_models(record, options, progress=None):
         fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)
-    told = from_fits([f.to_json() for f in fits]) if fits else None
+    told = from_fits([f.to_json() for f in fits]) if fits and options.S is None else None
     if told is not None and (told.detected or (
             told.detected is False and told.play is None and 0 < NOISE_FIT * noise < ideal)):
         # A claim of friction must beat the best valve without it, which real readings
         # call for first (dead time, lag, calibration); so must a claim of none where
-        # an ideal valve leaves more than MV's noise.  Fitted only for those claims.
+        # an ideal valve leaves more than MV's noise.  Fitted only for those claims, and
+        # not where the user gave S and J: that model is theirs to weigh.
         # Stick-slip gets the chain's calibration too (an offset and gain on its MV).
         chain = fit_without_friction(op, mv, segs, ts)
         idx = indices(segs)
@@ -131,7 +133,10 @@ def fit_models(record, options, progress=None):
             fit.extra['frictionless'] = chain
             pred = predictions[fit.model]
             if np.all(np.isfinite(pred[idx])):
-                fit.extra['calibrated_mse'] = calibrated(pred, mv, idx)[2] / len(idx)
+                offset, gain, sse = calibrated(pred, mv, idx)
+                # Held to the calibration the valve without friction is held to.
+                if plausible({'offset': offset, 'gain': gain}):
+                    fit.extra['calibrated_mse'] = sse / len(idx)
     return fits, predictions
 
 

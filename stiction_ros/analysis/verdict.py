@@ -129,16 +129,13 @@ def from_fits(fits: list[dict]) -> FitVerdict:
     if (detected and chain and plausible(chain)
             and _stick_slip_mse(best) > (1.0 - MIN_IMPROVEMENT) * chain['mse']):
         return _without_friction(best, chain, noise, why)
-    if (not detected and chain and noise
-            and min(chain['mse'], _stick_slip_mse(best)) > NOISE_FIT * noise):
+    if not banded and chain and not explains(chain, noise):
         # No stiction is a claim too: that a valve without friction explains MV.
-        return FitVerdict(None, 0.0, best['S'], (
-            f'neither stick-slip (MSE {_stick_slip_mse(best):.4g}, its position calibrated) '
-            f'nor a valve without friction ({chain_words(chain)}, MSE {chain["mse"]:.4g}) '
-            f'fits MV down to its noise ({noise:.4g} from its sample-to-sample changes, '
-            f'{NOISE_FIT:g} times that allowed): friction behind a dead time or calibration '
-            'that the plain models leave out, or an effect neither has; --explain fits them '
-            f'together; {why}'), code='unexplained_mv')
+        return _unexplained(best, chain, noise, lo >= MIN_S and j_lo >= MIN_J, why)
+    if (not banded and chain and lo >= MIN_S and j_lo >= MIN_J
+            and _stick_slip_mse(best) < chain['mse']):
+        # ... and at least as well as stick-slip with a clear band and jump does.
+        return _alike(best, chain, why)
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
@@ -173,12 +170,41 @@ def chain_words(chain: dict) -> str:
     """Return the stages of a frictionless valve (``fits[].frictionless``) in words."""
     words = []
     if chain['dead_time_s'] > 0.0:
-        words.append(f'dead time {chain["dead_time_s"]:.2g} s')
+        words.append(f'dead time {chain["dead_time_s"]:.3g} s')
     if chain['lag_s'] > 0.0:
-        words.append(f'lag {chain["lag_s"]:.2g} s')
+        words.append(f'lag {chain["lag_s"]:.3g} s')
     if abs(chain['offset']) >= 0.1 or abs(chain['gain'] - 1.0) >= 0.005:
         words.append(f'MV = {chain["offset"]:.2f} + {chain["gain"]:.3f} x OP')
     return ', '.join(words) or 'MV = OP'
+
+
+def explains(chain: dict, noise: float | None) -> bool:
+    """Return whether a valve without friction explains MV: plausible, fitting to its noise."""
+    return bool(noise and plausible(chain) and chain['mse'] <= NOISE_FIT * noise)
+
+
+def _unexplained(best: dict, chain: dict, noise: float | None, banded_jump: bool,
+                 why: str) -> FitVerdict:
+    K, F, stages = _stick_slip_mse(best), chain['mse'], chain_words(chain)
+    heard = (f'{noise:.4g} from its sample-to-sample changes' if noise else
+             "MV's noise unknown: most of its changes are none, a held or quantised reading")
+    if not plausible(chain):
+        without = (f'a valve without friction fits only with a calibration no working '
+                   f'reading has ({stages}, MSE {F:.4g})')
+    else:
+        without = f'a valve without friction ({stages}) leaves MSE {F:.4g}'
+    if noise and banded_jump and K <= NOISE_FIT * noise:
+        what = (f'stick-slip with its position calibrated fits MV down to its noise (MSE '
+                f'{K:.4g}, against {heard}) and {without}, yet stick-slip removes under '
+                f"{100 * MIN_IMPROVEMENT:.0f} % of an ideal valve's MSE")
+    else:
+        what = (f'neither stick-slip (MSE {K:.4g}, its position calibrated) nor a valve '
+                f'without friction explains MV down to its noise ({heard}, {NOISE_FIT:g} '
+                f'times that allowed): {without}')
+    return FitVerdict(None, 0.0, best['S'], (
+        f'{what}; friction behind a dead time or calibration the plain models leave out, '
+        f'or an effect neither has; --explain fits them together; {why}'),
+        code='unexplained_mv')
 
 
 def _stick_slip_mse(fit: dict) -> float:
@@ -190,18 +216,25 @@ def _without_friction(best: dict, chain: dict, noise: float | None, why: str) ->
     # Stick-slip beat an ideal valve, but not a valve with the timing and calibration
     # a real reading has: friction is not shown until it beats that one too.
     stages, F, K = chain_words(chain), chain['mse'], _stick_slip_mse(best)
-    if noise and F <= NOISE_FIT * noise and F < K:
+    if explains(chain, noise) and F < K:
         return FitVerdict(False, 0.0, best['S'], (
             f'a valve without friction ({stages}) fits MV down to its noise (MSE {F:.4g}, '
             f'against {noise:.4g} from its sample-to-sample changes), better than stick-slip '
             f'(MSE {K:.4g}): what an ideal valve misses is timing or calibration, '
             f'not friction; {why}'), without_friction=stages)
+    return _alike(best, chain, why)
+
+
+def _alike(best: dict, chain: dict, why: str) -> FitVerdict:
+    # Stick-slip and a valve without friction fit about alike: neither claim is shown.
+    K, F = _stick_slip_mse(best), chain['mse']
     return FitVerdict(None, 0.0, best['S'], (
-        f'stick-slip fits MV with MSE {K:.4g} (its position calibrated), but a valve without '
-        f'friction ({stages}) fits it with MSE {F:.4g}, and stick-slip removes under '
-        f'{100 * MIN_IMPROVEMENT:.0f} % of that: friction is not shown over timing and '
-        'calibration; --explain fits friction with them and tests both on held-out data; '
-        f'{why}'), code='frictionless_fits')
+        f'stick-slip fits MV with MSE {K:.4g} (its position calibrated) and a valve without '
+        f'friction ({chain_words(chain)}) with MSE {F:.4g}: stick-slip does not remove '
+        f'{100 * MIN_IMPROVEMENT:.0f} % of that, nor does the valve without friction fit '
+        'better, so neither friction nor its absence is shown over timing and calibration; '
+        f'--explain fits friction with them and tests both on held-out data; {why}'),
+        code='frictionless_fits')
 
 
 def from_signatures(osc, sigs, weights=None, threshold=None):

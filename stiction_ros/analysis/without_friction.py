@@ -30,6 +30,8 @@ from stiction_ros.kernels.lags import lag_from_rest
 MAX_DELAY = (60.0, 30.0)
 MAX_LAG = (60.0, 120.0)
 TAU_GRID = (0.0, 0.3, 0.6, 1.0, 1.6, 2.5, 4.0, 6.0, 9.0, 14.0, 20.0, 30.0, 45.0, 60.0)
+# Samples the search reads at most: a day of 1e6 samples costs no more than 20 000.
+MAX_SEARCH = 20_000
 # The compass search after the grid: at most this many moves, down to this step (samples).
 MAX_MOVES = 120
 STEP_END = 0.01
@@ -90,6 +92,17 @@ def calibrated(y: np.ndarray, mv: np.ndarray, idx: np.ndarray) -> tuple[float, f
     return offset, gain, float(r @ r)
 
 
+def _first(segments, n: int) -> list:
+    """Return ``segments`` cut after their first ``n`` samples."""
+    out, left = [], n
+    for a, b in segments:
+        if left <= 0:
+            break
+        out.append((int(a), int(min(b, a + left))))
+        left -= b - a
+    return out
+
+
 def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
                          sample_time: float) -> dict:
     """
@@ -103,10 +116,16 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
         through the dead time and lag).
 
     """
-    op = np.asarray(op, dtype=np.float64)
+    # A valve cannot travel past its stops whatever OP asks, as for the ideal valve.
+    op = np.clip(np.asarray(op, dtype=np.float64), 0.0, 100.0)
     mv = np.asarray(mv, dtype=np.float64)
-    idx = indices(segments)
-    runs = carried_runs(segments, op)
+    # The search reads the first MAX_SEARCH samples (each point costs a pass over them);
+    # the chain found is then scored on every sample.
+    search = _first(segments, MAX_SEARCH)
+    end = search[-1][1]
+    op_s, mv_s = op[:end], mv[:end]
+    idx = indices(search)
+    runs = carried_runs(search, op_s)
     d_max, tau_max = limits(sample_time)
     d_axis = np.unique(np.r_[np.arange(0.0, min(d_max, 4.0) + 1e-9, 0.25),
                              np.arange(4.0, d_max + 1e-9, 1.0)])
@@ -116,8 +135,8 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
     def sse(d: float, tau: float) -> float:
         key = (round(d, 9), round(tau, 9))
         if key not in cache:
-            y = lagged(shift(op, d, segments), tau, runs)
-            cache[key] = calibrated(y, mv, idx)[2]
+            y = lagged(shift(op_s, d, search), tau, runs)
+            cache[key] = calibrated(y, mv_s, idx)[2]
         return cache[key]
 
     here, d, tau = min((sse(d, t), d, t) for d in d_axis for t in t_axis)
@@ -135,6 +154,8 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
             break
         else:
             step_d, step_t = step_d / 2, step_t / 2
-    offset, gain, total = calibrated(lagged(shift(op, d, segments), tau, runs), mv, idx)
+    idx = indices(segments)
+    y = lagged(shift(op, d, segments), tau, carried_runs(segments, op))
+    offset, gain, total = calibrated(y, mv, idx)
     return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
             'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain)}

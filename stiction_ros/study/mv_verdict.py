@@ -119,6 +119,10 @@ def read(run: Run) -> dict:
             # Scored as neither answer, and shown: the analyzer failed on a plain loop.
             return {**base, **dict.fromkeys(RULES, 'error'), 'error': str(err)}
     st, fits = report['stiction'], report['fits']
+    if not fits:
+        # MV set aside as a dead reading (mv_dead): OP and PV answered, under every rule.
+        return {**base, **dict.fromkeys(RULES, st['answer']), 'cannot_tell':
+                st.get('cannot_tell'), 'mv_dead': True, 'S': None, 'J': None}
     best = min(fits, key=lambda f: f['mse'])
     return {**base, 'answer': st['answer'], 'cannot_tell': st.get('cannot_tell'),
             'play': st.get('play'), 'jump': jump_rule(st, fits), 'old': old_rule(st, fits),

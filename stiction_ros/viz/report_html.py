@@ -87,11 +87,13 @@ def _verdict(report: dict) -> list:
                'than that share of the MSE (the noise is most of it) is cannot tell too. '
                'A claim must also beat the best valve without friction (a dead time, a lag '
                'and a calibration within gain 0.8-1.25 and 10 % at mid-span, fitted to MV): '
-               'stick-slip, given an offset and gain too, must remove '
-               'that share of its MSE, else the answer is no stiction where that valve fits '
-               'MV to within 1.5 times its noise variance, and cannot tell where it does not. '
-               'No stiction needs a valve that explains MV: where neither that valve nor '
-               'stick-slip fits to within 1.5 times the noise variance, cannot tell. '
+               'stick-slip, given such a calibration too, must remove that share of its MSE, '
+               'else the answer is no stiction where that valve fits MV to within 1.5 times '
+               'its noise variance and at least as well as stick-slip, and cannot tell where '
+               'it does not. No stiction needs that valve to explain MV the same way: to '
+               'within 1.5 times the noise variance, and at least as well as stick-slip with '
+               'a clear band and jump; else cannot tell. None of this is weighed where S and '
+               'J were given. '
                'The score is the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>), 0 '
                'for play and for cannot tell.')
     elif st.get('probability') is not None:
