@@ -51,11 +51,12 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     # Neither it nor stick-slip does: friction behind an effect the plain models lack.
     told = from_fits([{**flat, 'frictionless': {**CHAIN, 'mse': 0.4}}])
     assert told.detected is None and told.code == 'unexplained_mv'
-    assert 'neither stick-slip' in told.reason
+    assert 'no valve without friction explains MV' in told.reason
     # Only a valve without friction explains: stick-slip fitting to the noise does not,
     told = from_fits([{**flat, 'S': 3.0, 'S_interval': [2.8, 3.2], 'improvement': 0.3,
                        'calibrated_mse': 0.012, 'frictionless': {**CHAIN, 'mse': 0.4}}])
-    assert told.code == 'unexplained_mv' and 'stick-slip with its position calibrated' in \
+    assert told.code == 'unexplained_mv'
+    assert 'stick-slip fits MV down to its noise (MSE 0.012 with its position calibrated' in \
         told.reason
     # nor one that needs a reading 30 % off to fit,
     told = from_fits([{**flat, 'frictionless': {**CHAIN, 'gain': 1.6}}])
@@ -64,9 +65,13 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     clear = {**flat, 'S': 3.0, 'S_interval': [2.8, 3.2], 'improvement': 0.3, 'mse': 0.02}
     near = {**CHAIN, 'mse': 0.014}
     told = from_fits([{**clear, 'calibrated_mse': 0.011, 'frictionless': near}])
-    assert told.code == 'frictionless_fits' and 'nor does the valve without' in told.reason
-    assert from_fits([{**clear, 'calibrated_mse': 0.015, 'frictionless': near}]).detected \
-        is False
+    assert told.code == 'frictionless_fits' and 'fits MV better than a valve' in told.reason
+    told = from_fits([{**clear, 'calibrated_mse': 0.015, 'frictionless': near}])
+    assert told.detected is False and told.without_friction and 'at least as well' in \
+        told.reason
+    # Without the calibration it was never given, no words claim one.
+    told = from_fits([{**flat, 'frictionless': rough_chain()}])
+    assert 'calibrated' not in told.reason and 'without a clear band' in told.reason
     # and play is answered from the band, whatever chain a caller attached.
     play = {**STICK_SLIP, 'J': 0.0, 'J_interval': [0.0, 0.01], 'frictionless': rough_chain()}
     assert from_fits([play]).play == 3.0

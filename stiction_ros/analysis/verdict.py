@@ -136,6 +136,12 @@ def from_fits(fits: list[dict]) -> FitVerdict:
             and _stick_slip_mse(best) < chain['mse']):
         # ... and at least as well as stick-slip with a clear band and jump does.
         return _alike(best, chain, why)
+    if not banded and chain:
+        stages = chain_words(chain)
+        return FitVerdict(False, score, best['S'], (
+            f'{why}; a valve without friction ({stages}) explains MV down to its noise '
+            f'(MSE {chain["mse"]:.4g}, against {noise:.4g} from its sample-to-sample '
+            'changes), at least as well as stick-slip'), without_friction=stages)
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
@@ -185,7 +191,7 @@ def explains(chain: dict, noise: float | None) -> bool:
 
 def _unexplained(best: dict, chain: dict, noise: float | None, banded_jump: bool,
                  why: str) -> FitVerdict:
-    K, F, stages = _stick_slip_mse(best), chain['mse'], chain_words(chain)
+    F, stages = chain['mse'], chain_words(chain)
     heard = (f'{noise:.4g} from its sample-to-sample changes' if noise else
              "MV's noise unknown: most of its changes are none, a held or quantised reading")
     if not plausible(chain):
@@ -193,14 +199,15 @@ def _unexplained(best: dict, chain: dict, noise: float | None, banded_jump: bool
                    f'reading has ({stages}, MSE {F:.4g})')
     else:
         without = f'a valve without friction ({stages}) leaves MSE {F:.4g}'
-    if noise and banded_jump and K <= NOISE_FIT * noise:
-        what = (f'stick-slip with its position calibrated fits MV down to its noise (MSE '
-                f'{K:.4g}, against {heard}) and {without}, yet stick-slip removes under '
+    if noise and banded_jump and _stick_slip_mse(best) <= NOISE_FIT * noise:
+        what = (f'stick-slip fits MV down to its noise ({_k_words(best)}, against {heard}) '
+                f'and {without}, yet stick-slip removes under '
                 f"{100 * MIN_IMPROVEMENT:.0f} % of an ideal valve's MSE")
     else:
-        what = (f'neither stick-slip (MSE {K:.4g}, its position calibrated) nor a valve '
-                f'without friction explains MV down to its noise ({heard}, {NOISE_FIT:g} '
-                f'times that allowed): {without}')
+        what = (f'no valve without friction explains MV down to its noise ({heard}, '
+                f'{NOISE_FIT:g} times that allowed): {without}; stick-slip leaves '
+                f'{_k_words(best)}' + ('' if banded_jump else
+                                       ', without a clear band and slip jump'))
     return FitVerdict(None, 0.0, best['S'], (
         f'{what}; friction behind a dead time or calibration the plain models leave out, '
         f'or an effect neither has; --explain fits them together; {why}'),
@@ -212,27 +219,40 @@ def _stick_slip_mse(fit: dict) -> float:
     return min(fit['mse'], fit.get('calibrated_mse', fit['mse']))
 
 
+def _k_words(fit: dict) -> str:
+    """Return stick-slip's MSE in words, saying whether its position was calibrated."""
+    K = _stick_slip_mse(fit)
+    return f'MSE {K:.4g}' + (' with its position calibrated' if K < fit['mse'] else '')
+
+
 def _without_friction(best: dict, chain: dict, noise: float | None, why: str) -> FitVerdict:
     # Stick-slip beat an ideal valve, but not a valve with the timing and calibration
     # a real reading has: friction is not shown until it beats that one too.
-    stages, F, K = chain_words(chain), chain['mse'], _stick_slip_mse(best)
-    if explains(chain, noise) and F < K:
+    stages, F = chain_words(chain), chain['mse']
+    if explains(chain, noise) and F <= _stick_slip_mse(best):
         return FitVerdict(False, 0.0, best['S'], (
             f'a valve without friction ({stages}) fits MV down to its noise (MSE {F:.4g}, '
-            f'against {noise:.4g} from its sample-to-sample changes), better than stick-slip '
-            f'(MSE {K:.4g}): what an ideal valve misses is timing or calibration, '
-            f'not friction; {why}'), without_friction=stages)
-    return _alike(best, chain, why)
+            f'against {noise:.4g} from its sample-to-sample changes), at least as well as '
+            f'stick-slip ({_k_words(best)}): what an ideal valve misses is timing or '
+            f'calibration, not friction; {why}'), without_friction=stages)
+    return _alike(best, chain, why, claimed=True)
 
 
-def _alike(best: dict, chain: dict, why: str) -> FitVerdict:
+def _alike(best: dict, chain: dict, why: str, claimed: bool = False) -> FitVerdict:
     # Stick-slip and a valve without friction fit about alike: neither claim is shown.
-    K, F = _stick_slip_mse(best), chain['mse']
+    F, words = chain['mse'], _k_words(best)
+    if claimed:
+        # Stick-slip beat an ideal valve by half, but not this valve.
+        what = (f'stick-slip ({words}) removes under {100 * MIN_IMPROVEMENT:.0f} % of the '
+                f'MSE of a valve without friction ({chain_words(chain)}, MSE {F:.4g}), and '
+                'that valve does not fit MV better and down to its noise')
+    else:
+        # No band by the ideal valve's test, yet stick-slip beats this valve.
+        what = (f'stick-slip with a clear band and slip jump ({words}) fits MV better than '
+                f'a valve without friction ({chain_words(chain)}, MSE {F:.4g}), but removes '
+                f"under {100 * MIN_IMPROVEMENT:.0f} % of an ideal valve's MSE")
     return FitVerdict(None, 0.0, best['S'], (
-        f'stick-slip fits MV with MSE {K:.4g} (its position calibrated) and a valve without '
-        f'friction ({chain_words(chain)}) with MSE {F:.4g}: stick-slip does not remove '
-        f'{100 * MIN_IMPROVEMENT:.0f} % of that, nor does the valve without friction fit '
-        'better, so neither friction nor its absence is shown over timing and calibration; '
+        f'{what}: neither friction nor its absence is shown over timing and calibration; '
         f'--explain fits friction with them and tests both on held-out data; {why}'),
         code='frictionless_fits')
 

@@ -12,11 +12,10 @@ is chosen here.
 """
 
 import argparse
-import os
 import sys
 
-from stiction_ros.cli.text import (description, figure, pipe_safe, run_seeded, run_stamp,
-                                   write_study)
+from stiction_ros.cli.text import figure, pipe_safe, run_seeded, run_stamp, save_study, \
+    seeded_parser
 
 # Seeds drawn for the gap study, never read by any other study or fit.
 SEEDS = range(7_000_000, 7_002_000)
@@ -24,13 +23,7 @@ SEEDS = range(7_000_000, 7_002_000)
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-gaps', description=description(__doc__))
-    p.add_argument('--first-seed', type=int, default=SEEDS.start)
-    p.add_argument('--seeds', type=int, default=len(SEEDS))
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
-    p.add_argument('--markdown', default='docs/GAPS.md')
-    p.add_argument('--json', default='docs/gaps.json')
-    return p
+    return seeded_parser('stiction-gaps', __doc__, SEEDS.start, len(SEEDS), 'GAPS')
 
 
 def markdown(study: dict) -> str:
@@ -86,7 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     if study is None:
         return 2
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
-    write_study(out, args.json, args.markdown, markdown)
+    if not save_study('stiction-gaps', out, args, markdown):
+        return 2
     for r in out['rows']:
         print(f"gap {r['share']:.0%}, {r['rule']:>20}: {figure(r['balanced_accuracy'])} at 0.5, "
               f"{figure(r['banded_balanced_accuracy'])} with the band")

@@ -14,11 +14,10 @@ choose nothing.
 
 import argparse
 import json
-import os
 from pathlib import Path
 import sys
 
-from stiction_ros.cli.text import description, figure, run_seeded, run_stamp, write_study
+from stiction_ros.cli.text import figure, run_seeded, run_stamp, save_study, seeded_parser
 
 # Fresh: the instrument cases' development seeds are 600000 and up, the --explain
 # benchmark scores 700000 and up.  760000-760023, 760100-760123 and 760200-760223 scored
@@ -29,12 +28,8 @@ FIRST_SEED = 760_300
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-mv-verdict', description=description(__doc__))
-    p.add_argument('--first-seed', type=int, default=FIRST_SEED)
-    p.add_argument('--seeds', type=int, default=24, help='seeds per case (default 24)')
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
-    p.add_argument('--markdown', default='docs/MV_VERDICT.md')
-    p.add_argument('--json', default='docs/mv_verdict.json')
+    p = seeded_parser('stiction-mv-verdict', __doc__, FIRST_SEED, 24, 'MV_VERDICT',
+                      'seeds per case (default 24)')
     p.add_argument('--render-only', action='store_true',
                    help='score nothing: rewrite --markdown from the study in --json')
     return p
@@ -166,11 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     if study is None:
         return 2
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
-    try:
-        write_study(out, args.json, args.markdown, markdown)
-    except OSError as err:
-        print(f'stiction-mv-verdict: error: cannot write {err.filename}: {err.strerror}',
-              file=sys.stderr)
+    if not save_study('stiction-mv-verdict', out, args, markdown):
         return 2
     for name, t in (('shipped', out['answer']), ('jump', out['jump']), ('old', out['old'])):
         print(f"{name:>8}: {t['wrong']} wrong, {t['cannot_tell']} cannot tell, "

@@ -11,10 +11,9 @@ the model never saw; these seeds choose nothing.
 """
 
 import argparse
-import os
 import sys
 
-from stiction_ros.cli.text import description, run_seeded, run_stamp, write_study
+from stiction_ros.cli.text import run_seeded, run_stamp, save_study, seeded_parser
 
 # Seeds of the probes' own generators (streams [seed, 11] and [seed, 13]) and of the
 # corpus for the detuned and fast-controller loops (the rate from [seed, 17]):
@@ -24,13 +23,8 @@ FIRST_SEED = 3_960_000
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-probes', description=description(__doc__))
-    p.add_argument('--first-seed', type=int, default=FIRST_SEED)
-    p.add_argument('--seeds', type=int, default=200, help='records per probe (default 200)')
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
-    p.add_argument('--markdown', default='docs/PROBES.md')
-    p.add_argument('--json', default='docs/probes.json')
-    return p
+    return seeded_parser('stiction-probes', __doc__, FIRST_SEED, 200, 'PROBES',
+                         'records per probe (default 200)')
 
 
 def markdown(study: dict) -> str:
@@ -73,11 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     if study is None:
         return 2
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
-    try:
-        write_study(out, args.json, args.markdown, markdown)
-    except OSError as err:
-        print(f'stiction-probes: error: cannot write {err.filename}: {err.strerror}',
-              file=sys.stderr)
+    if not save_study('stiction-probes', out, args, markdown):
         return 2
     for r in out['rows']:
         print(f"{r['probe']:>20} {'sticky' if r['label'] else 'healthy':>7}: "

@@ -13,12 +13,11 @@ chosen here), so the first row repeats the simulated row of docs/ACCURACY.md.
 """
 
 import argparse
-import os
 import sys
 
 from stiction_ros.analysis.detection import dataset
 from stiction_ros.app.progress import Step, terminal_progress
-from stiction_ros.cli.text import description, figure, pipe_safe, run_stamp, write_study
+from stiction_ros.cli.text import figure, pipe_safe, run_stamp, save_study, seeded_parser
 from stiction_ros.errors import DetectorFileError
 
 # The scoring seeds of make accuracy: the first row repeats its simulated row.
@@ -29,15 +28,10 @@ SKEW_SEEDS = range(dataset.TRAIN.start, dataset.TRAIN.start + 1500)
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-robustness', description=description(__doc__))
-    p.add_argument('--first-seed', type=int, default=SEEDS.start)
-    p.add_argument('--seeds', type=int, default=len(SEEDS))
+    p = seeded_parser('stiction-robustness', __doc__, SEEDS.start, len(SEEDS), 'ROBUSTNESS')
     p.add_argument('--skew-seeds', type=int, default=len(SKEW_SEEDS),
                    help='training records the clock-skew and lag thresholds are chosen on '
                         f'again (seeds from {SKEW_SEEDS.start}; 0 to skip)')
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
-    p.add_argument('--markdown', default='docs/ROBUSTNESS.md')
-    p.add_argument('--json', default='docs/robustness.json')
     return p
 
 
@@ -178,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = {**study.to_json(), 'skew_choice': choice, 'lag_choice': lags,
            'run': run_stamp(args.jobs)}
-    write_study(out, args.json, args.markdown, markdown)
+    if not save_study('stiction-robustness', out, args, markdown):
+        return 2
     for r in out['rows']:
         print(f"{r['condition']:>18}: {r['balanced_accuracy']:.3f} at 0.5 "
               f"({r['tp']}/{r['tp'] + r['fn']} sticky found, {r['fp']}/{r['fp'] + r['tn']} "

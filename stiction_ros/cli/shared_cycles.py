@@ -18,7 +18,7 @@ import argparse
 import os
 import sys
 
-from stiction_ros.cli.text import description, run_seeded, run_stamp, write_study
+from stiction_ros.cli.text import run_seeded, run_stamp, seeded_parser, write_study
 
 FIRST_SEED = 6_300_000
 RULE = ('The rule was set on seeds 6100000-6100339 and scored once on 6200000-6200599 in a '
@@ -28,12 +28,8 @@ RULE = ('The rule was set on seeds 6100000-6100339 and scored once on 6200000-62
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = argparse.ArgumentParser(prog='stiction-shared-cycles', description=description(__doc__))
-    p.add_argument('--first-seed', type=int, default=FIRST_SEED)
-    p.add_argument('--seeds', type=int, default=600, help='pairs (default 600)')
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
-    p.add_argument('--markdown', default='docs/SHARED_CYCLES.md')
-    p.add_argument('--json', default='docs/shared_cycles.json')
+    p = seeded_parser('stiction-shared-cycles', __doc__, FIRST_SEED, 600, 'SHARED_CYCLES',
+                      'pairs (default 600)')
     p.add_argument('--figure', default='docs/figures/shared_cycles.png')
     return p
 

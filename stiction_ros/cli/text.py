@@ -1,5 +1,6 @@
 """What every command shares: its ``--help`` description, a quiet end on a closed pipe, pages."""
 
+import argparse
 import datetime
 import functools
 import json
@@ -55,6 +56,38 @@ def write_study(study: dict, json_path: str, markdown_path: str,
                        (markdown_path, page(study))):
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Path(path).write_text(text, encoding='utf-8')
+
+
+def save_study(prog: str, study: dict, args, page: Callable[[dict], str]) -> bool:
+    """
+    Write a study to ``args.json`` and ``args.markdown``; False after saying why it cannot.
+
+    Hours of simulation end in these two files: a folder that cannot be
+    written is one line on stderr, not a traceback.
+    """
+    try:
+        write_study(study, args.json, args.markdown, page)
+    except OSError as err:
+        print(f'{prog}: error: cannot write {err.filename}: {err.strerror}', file=sys.stderr)
+        return False
+    return True
+
+
+def seeded_parser(prog: str, doc: str | None, first_seed: int, seeds: int, page: str,
+                  seeds_help: str | None = None) -> argparse.ArgumentParser:
+    """
+    Return the parser every seeded study starts from.
+
+    ``--first-seed``, ``--seeds`` (default ``seeds``), ``--jobs`` (every core),
+    ``--markdown docs/PAGE.md`` and ``--json docs/page.json`` for ``page``.
+    """
+    p = argparse.ArgumentParser(prog=prog, description=description(doc))
+    p.add_argument('--first-seed', type=int, default=first_seed)
+    p.add_argument('--seeds', type=int, default=seeds, help=seeds_help)
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1)
+    p.add_argument('--markdown', default=f'docs/{page}.md')
+    p.add_argument('--json', default=f'docs/{page.lower()}.json')
+    return p
 
 
 def run_stamp(jobs: int) -> dict:

@@ -90,12 +90,14 @@ def _verdict(report: dict) -> list:
                'stick-slip, given such a calibration too, must remove that share of its MSE, '
                'else the answer is no stiction where that valve fits MV to within 1.5 times '
                'its noise variance and at least as well as stick-slip, and cannot tell where '
-               'it does not. No stiction needs that valve to explain MV the same way: to '
-               'within 1.5 times the noise variance, and at least as well as stick-slip with '
-               'a clear band and jump; else cannot tell. None of this is weighed where S and '
-               'J were given. '
+               'it does not. Where the fits find no band and an ideal valve leaves more than '
+               '1.5 times the noise variance, no stiction needs that valve to explain MV the '
+               'same way, and at least as well as stick-slip with a clear band and jump; else '
+               'cannot tell. Play is answered from its band alone, and sizes the user gave '
+               'are not weighed against that valve. '
                'The score is the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>), 0 '
-               'for play and for cannot tell.')
+               'for play, for cannot tell and where stiction gave way to the valve without '
+               'friction.')
     elif st.get('probability') is not None:
         # As the reason under it and the terminal print it: two decimals, three in the tails.
         shown = probability_text(st['probability'], DETECTOR_BAND)
