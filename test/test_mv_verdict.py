@@ -69,6 +69,10 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     told = from_fits([{**clear, 'calibrated_mse': 0.015, 'frictionless': near}])
     assert told.detected is False and told.without_friction and 'at least as well' in \
         told.reason
+    # Stick-slip a little better, but with no clear jump: no stiction, said as it is.
+    told = from_fits([{**clear, 'J_interval': [0.0, 1.2], 'calibrated_mse': 0.011,
+                       'frictionless': near}])
+    assert told.detected is False and 'without a clear band and slip jump' in told.reason
     # Without the calibration it was never given, no words claim one.
     told = from_fits([{**flat, 'frictionless': rough_chain()}])
     assert 'calibrated' not in told.reason and 'without a clear band' in told.reason

@@ -138,10 +138,13 @@ def from_fits(fits: list[dict]) -> FitVerdict:
         return _alike(best, chain, why)
     if not banded and chain:
         stages = chain_words(chain)
+        beside = ('at least as well as stick-slip' if chain['mse'] <= _stick_slip_mse(best)
+                  else f'stick-slip, without a clear band and slip jump, leaving '
+                       f'{_k_words(best)}')
         return FitVerdict(False, score, best['S'], (
             f'{why}; a valve without friction ({stages}) explains MV down to its noise '
             f'(MSE {chain["mse"]:.4g}, against {noise:.4g} from its sample-to-sample '
-            'changes), at least as well as stick-slip'), without_friction=stages)
+            f'changes; {beside})'), without_friction=stages)
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
