@@ -61,3 +61,32 @@ def test_op_past_the_valve_stops_and_a_long_record():
     fit = fit_without_friction(op, mv, segs, 1.0)
     assert abs(fit['dead_time_s'] - 2.0) < 0.05 and abs(fit['gain'] - 1.0) < 0.005
     assert fit['mse'] < 1.05 * 0.1 ** 2
+
+
+def test_a_lagged_noisy_reading_of_a_noisy_op_is_no_still_valve(tmp_path):
+    from stiction_ros.analysis.measures.still import still_valve
+    from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
+    from stiction_ros.sim.closed_loop import write_csv
+    # OP's spread is mostly its own noise (a controller on a noisy PV every sample); MV
+    # follows its slow part through a 30-sample lag, read with 1 % noise.
+    rng = np.random.default_rng(7)
+    n = 4000
+    op = 50 + np.repeat(rng.uniform(-2, 2, n // 400), 400) + rng.normal(0, 3, n)
+    segs = [(0, n)]
+    mv = lagged(op, 30.0, segs) + rng.normal(0, 1, n)
+    dead = 50 + rng.normal(0, 1, n)
+    # Sample by sample MV stays within its noise and hardly correlates with OP.
+    assert still_valve(op, mv, segs) is not None
+    for name, reading in (('lagged', mv), ('dead', dead)):
+        rows = {'t': np.arange(n, dtype=float), 'op': op, 'mv': reading}
+        write_csv(tmp_path / f'{name}.csv', rows, columns=('t', 'op', 'mv'))
+    lag = analyze_file(AnalyzeOptions(input=str(tmp_path / 'lagged.csv'), explain=True,
+                                      jobs=1)).report
+    assert lag['stiction'].get('cannot_tell') != 'mv_still'
+    assert any('not read as still' in note for note in lag['notes'])
+    # --explain reads the valve by the same test, and explains the lag.
+    assert lag['mismatch']['friction'] is False
+    assert [e['id'] for e in lag['mismatch']['effects']] == ['response_lag']
+    # A dead reading needs a gain near zero to be fitted: still, as before.
+    held = analyze_file(AnalyzeOptions(input=str(tmp_path / 'dead.csv'))).report
+    assert held['stiction']['cannot_tell'] == 'mv_still'

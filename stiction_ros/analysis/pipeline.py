@@ -20,11 +20,12 @@ from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
-from stiction_ros.analysis.measures.still import set_point_test, still_valve
+from stiction_ros.analysis.measures.still import set_point_test
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.verdict import combine, from_fits, NOISE_FIT, plausible, \
     refuse_still
-from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, indices
+from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
+    indices, still_reading
 
 MODEL_CHOICES = ('kano', 'choudhury', 'both')
 LOOP_TYPES = ('auto', 'self-regulating', 'integrating')
@@ -429,8 +430,13 @@ def analyze(record: Record, options: Options | None = None,
         sticks = report['stiction']['detected'] is not False
         caution = (sampling_caution(held, osc, record.sample_time, sticks) if win is not None
                    else valve_sampling_caution(record, sticks, MIN_SIGNATURE_SAMPLES))
-        still = still_valve(record.signals['op'], record.signals['mv'],
-                            record.valve_segments(min_samples=2))
+        still, overruled = still_reading(record.signals['op'], record.signals['mv'],
+                                         record.valve_segments(min_samples=2),
+                                         record.sample_time, fitted[0].extra.get('mv_noise_var'))
+        if overruled:
+            notes.append('MV stayed within its noise while OP travelled, but a valve without '
+                         'friction explains it down to that noise: MV follows the slow part '
+                         "of OP, whose spread is mostly OP's own noise; not read as still")
         if still is not None:
             # The fit's range is as narrow as the noise, but S is bounded from below only.
             lower = (f'{still.sentence()}; the fitted S and its range are where the fit '

@@ -23,6 +23,8 @@ import math
 import numpy as np
 
 from stiction_ros.analysis.fit_core import carried_runs
+from stiction_ros.analysis.measures.still import Still, still_valve
+from stiction_ros.analysis.verdict import explains
 from stiction_ros.kernels.lags import lag_from_rest
 
 # Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
@@ -159,3 +161,32 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
     offset, gain, total = calibrated(y, mv, idx)
     return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
             'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain)}
+
+
+def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
+               noise: float | None) -> bool:
+    """
+    Return whether MV follows OP through timing, though it spread within its noise.
+
+    OP's spread can be mostly its own noise (a controller acting on a noisy PV
+    every sample) while MV, behind an actuator or transmitter lag, follows
+    only its slow part: then MV's spread is small against OP's, and the two
+    correlate weakly sample by sample.  A valve without friction that fits MV
+    down to its noise with a working calibration says MV moved with OP; a
+    dead or held reading needs a gain near zero, which no working reading has.
+    """
+    return explains(fit_without_friction(op, mv, segments, sample_time), noise)
+
+
+def still_reading(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
+                  noise: float | None) -> tuple[Still | None, bool]:
+    """
+    Return (the still valve of ``still_valve`` or None, whether :func:`follows_op` overruled it).
+
+    The verdict and ``--explain`` read a valve as still by this one test.
+    """
+    still = still_valve(op, mv, segments)
+    if still is not None and not still.drifted and follows_op(op, mv, segments, sample_time,
+                                                              noise):
+        return None, True
+    return still, False

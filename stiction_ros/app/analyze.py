@@ -394,8 +394,11 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
                 'positioner feedback (or a flow right after the valve) and run --explain '
                 'again; the stiction verdict above is what OP and PV can say.')}
         return
-    from stiction_ros.analysis.measures.still import still_valve
-    still = still_valve(rec.signals['op'], rec.signals['mv'], rec.valve_segments(min_samples=2))
+    from stiction_ros.analysis.without_friction import still_reading
+    fits = analysis.report.get('fits') or [{}]
+    still, _ = still_reading(rec.signals['op'], rec.signals['mv'],
+                             rec.valve_segments(min_samples=2), rec.sample_time,
+                             fits[0].get('mv_noise_var'))
     if still is not None:
         # A fit to a valve that never moved reads MV's noise: a calibration of gain 0 or a
         # dead time would be named with full confidence.
