@@ -1,11 +1,13 @@
 """The verdict's valve without friction: dead time, lag and calibration recovered from MV."""
 
 import numpy as np
+from scipy.signal import lfilter
 
 from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
-from stiction_ros.analysis.without_friction import fit_without_friction, lagged, shift
+from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
+    lagged, shift
 
 
 def _op(n=3000, seed=0):
@@ -29,11 +31,18 @@ def test_a_known_chain_is_recovered_to_its_noise():
     assert fit['mse'] < 1.05 * 0.05 ** 2
 
 
-def test_the_lag_kernel_is_the_filter_explain_uses():
+def test_the_lag_kernel_is_a_first_order_filter_at_rest_on_each_run():
+    # The naive reference: scipy's filter, started at rest on each run's first sample.
     op = _op(seed=2)
     segs = [(0, 900), (905, 3000)]
-    np.testing.assert_allclose(lagged(op, 7.3, carried_runs(segs, op)),
-                               ins.lag(op, 7.3, segs), rtol=0, atol=1e-10)
+    p = np.exp(-1.0 / 7.3)
+    ref = op.copy()
+    for a, b in carried_runs(segs, op):
+        ref[a:b] = lfilter([1.0 - p], [1.0, -p], op[a:b], zi=[p * op[a]])[0]
+    np.testing.assert_allclose(lagged(op, 7.3, carried_runs(segs, op)), ref, rtol=0,
+                               atol=1e-10)
+    # --explain's chain runs the same lag.
+    assert np.array_equal(ins.lag(op, 7.3, segs), lagged(op, 7.3, carried_runs(segs, op)))
 
 
 def test_the_grid_search_matches_explains_optimiser_on_the_same_stages():
@@ -90,3 +99,15 @@ def test_a_lagged_noisy_reading_of_a_noisy_op_is_no_still_valve(tmp_path):
     # A dead reading needs a gain near zero to be fitted: still, as before.
     held = analyze_file(AnalyzeOptions(input=str(tmp_path / 'dead.csv'))).report
     assert held['stiction']['cannot_tell'] == 'mv_still'
+
+
+def test_the_closed_form_calibration_is_the_least_squares_line():
+    rng = np.random.default_rng(8)
+    y = rng.normal(50, 5, 500)
+    mv = 1.2 + 0.95 * y + rng.normal(0, 0.2, 500)
+    idx = np.arange(20, 480)
+    a = np.column_stack([np.ones(idx.size), y[idx]])
+    (c0, c1), *_ = np.linalg.lstsq(a, mv[idx], rcond=None)
+    offset, gain, sse = calibrated(y, mv, idx)
+    assert abs(offset - c0) < 1e-9 and abs(gain - c1) < 1e-12
+    assert abs(sse - float(np.sum((mv[idx] - c0 - c1 * y[idx]) ** 2))) < 1e-9

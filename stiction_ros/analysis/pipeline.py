@@ -432,7 +432,7 @@ def analyze(record: Record, options: Options | None = None,
                    else valve_sampling_caution(record, sticks, MIN_SIGNATURE_SAMPLES))
         still, overruled = still_reading(record.signals['op'], record.signals['mv'],
                                          record.valve_segments(min_samples=2),
-                                         record.sample_time, fitted[0].extra.get('mv_noise_var'))
+                                         record.sample_time, fitted[0].extra)
         if overruled:
             notes.append('MV stayed within its noise while OP travelled, but a valve without '
                          'friction explains it down to that noise: MV follows the slow part '

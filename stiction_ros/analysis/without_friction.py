@@ -164,7 +164,7 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
 
 
 def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
-               noise: float | None) -> bool:
+               noise: float | None, chain: dict | None = None) -> bool:
     """
     Return whether MV follows OP through timing, though it spread within its noise.
 
@@ -174,19 +174,23 @@ def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
     correlate weakly sample by sample.  A valve without friction that fits MV
     down to its noise with a working calibration says MV moved with OP; a
     dead or held reading needs a gain near zero, which no working reading has.
+    ``chain``: that valve, where the fits already have it.
     """
-    return explains(fit_without_friction(op, mv, segments, sample_time), noise)
+    chain = chain or fit_without_friction(op, mv, segments, sample_time)
+    return explains(chain, noise)
 
 
 def still_reading(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
-                  noise: float | None) -> tuple[Still | None, bool]:
+                  fit: dict) -> tuple[Still | None, bool]:
     """
     Return (the still valve of ``still_valve`` or None, whether :func:`follows_op` overruled it).
 
-    The verdict and ``--explain`` read a valve as still by this one test.
+    The verdict and ``--explain`` read a valve as still by this one test;
+    ``fit`` is a fit's report entry (its ``mv_noise_var``, and its
+    ``frictionless`` valve where one was fitted), ``{}`` where there is none.
     """
     still = still_valve(op, mv, segments)
-    if still is not None and not still.drifted and follows_op(op, mv, segments, sample_time,
-                                                              noise):
+    if still is not None and not still.drifted and follows_op(
+            op, mv, segments, sample_time, fit.get('mv_noise_var'), fit.get('frictionless')):
         return None, True
     return still, False

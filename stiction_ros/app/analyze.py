@@ -397,8 +397,7 @@ def run_explain(analysis: Analysis, options: AnalyzeOptions, say: Say = print_no
     from stiction_ros.analysis.without_friction import still_reading
     fits = analysis.report.get('fits') or [{}]
     still, _ = still_reading(rec.signals['op'], rec.signals['mv'],
-                             rec.valve_segments(min_samples=2), rec.sample_time,
-                             fits[0].get('mv_noise_var'))
+                             rec.valve_segments(min_samples=2), rec.sample_time, fits[0])
     if still is not None:
         # A fit to a valve that never moved reads MV's noise: a calibration of gain 0 or a
         # dead time would be named with full confidence.

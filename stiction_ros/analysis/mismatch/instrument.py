@@ -22,7 +22,6 @@ import math
 
 import numpy as np
 from scipy.optimize import minimize_scalar
-from scipy.signal import lfilter
 
 from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.identify import identify, plausible_box, wider_s
@@ -30,7 +29,7 @@ from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUT
     start_positions
 from stiction_ros.analysis.mismatch.stats import curvature_errors
 # The limits, grid and dead-time shift the verdict's own frictionless valve uses too.
-from stiction_ros.analysis.without_friction import indices, limits, shift
+from stiction_ros.analysis.without_friction import calibrated, indices, lagged, limits, shift
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.kernels.chain import limited
 
@@ -78,23 +77,16 @@ class ChainFit:
 
 def lag(x: np.ndarray, tau: float, segments) -> np.ndarray:
     """Return ``x`` through a first-order lag of ``tau`` samples, at rest at each run start."""
-    out = np.array(x, dtype=np.float64, copy=True)
-    if tau <= 0.0:
-        return out
-    p = math.exp(-1.0 / tau)
-    for a, b in carried_runs(segments, x):
-        out[a:b], _ = lfilter([1.0 - p], [1.0, -p], out[a:b], zi=[p * out[a]])
-    return out
+    return lagged(x, tau, carried_runs(segments, x))
 
 
 def affine(y: np.ndarray, mv: np.ndarray, idx: np.ndarray, offset: bool,
            gain: bool) -> tuple[float, float, float]:
     """Return (offset, gain, SSE) of the least-squares ``mv = offset + gain * y`` on ``idx``."""
-    yy, mm = y[idx], mv[idx]
     if offset and gain:
-        a = np.column_stack([np.ones(len(yy)), yy])
-        (c0, c1), *_ = np.linalg.lstsq(a, mm, rcond=None)
-    elif offset:
+        return calibrated(y, mv, idx)
+    yy, mm = y[idx], mv[idx]
+    if offset:
         c0, c1 = float(np.mean(mm - yy)), 1.0
     elif gain:
         den = float(yy @ yy)
