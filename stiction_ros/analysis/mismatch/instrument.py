@@ -29,7 +29,7 @@ from stiction_ros.analysis.mismatch.fit import EffectsProblem, local_sj, RESOLUT
     start_positions
 from stiction_ros.analysis.mismatch.stats import curvature_errors
 # The limits, grid and dead-time shift the verdict's own frictionless valve uses too.
-from stiction_ros.analysis.without_friction import calibrated, indices, lagged, limits, shift
+from stiction_ros.analysis.without_friction import indices, lagged, limits, shift
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.kernels.chain import limited
 
@@ -83,10 +83,11 @@ def lag(x: np.ndarray, tau: float, segments) -> np.ndarray:
 def affine(y: np.ndarray, mv: np.ndarray, idx: np.ndarray, offset: bool,
            gain: bool) -> tuple[float, float, float]:
     """Return (offset, gain, SSE) of the least-squares ``mv = offset + gain * y`` on ``idx``."""
-    if offset and gain:
-        return calibrated(y, mv, idx)
     yy, mm = y[idx], mv[idx]
-    if offset:
+    if offset and gain:
+        a = np.column_stack([np.ones(len(yy)), yy])
+        (c0, c1), *_ = np.linalg.lstsq(a, mm, rcond=None)
+    elif offset:
         c0, c1 = float(np.mean(mm - yy)), 1.0
     elif gain:
         den = float(yy @ yy)
