@@ -151,3 +151,18 @@ def test_a_valve_sized_inside_the_box_is_searched_once():
     fit = identify(d['op'], d['mv'], 'kano', interval=False)
     assert (fit.S, fit.J) == (round(narrow[1], 10), round(narrow[2], 10))
     assert fit.evaluations == problem.evaluations
+
+
+def test_a_ridge_between_the_points_of_a_coarse_window_keeps_the_finer_range():
+    # A miscalibrated healthy valve read with 1 % noise: Kano's poor fit (S 0.15, J 10)
+    # lies on a thin S-J ridge that the coarsened widened window missed entirely, which
+    # crashed the range on an empty region (make mv-verdict, seed 760512).
+    from stiction_ros.sim.instrument_cases import instrument_case
+    rec, _ = instrument_case('positioner_calibration', 760512, sample_time=1.0,
+                             n_samples=4321, noise=1.0)
+    fit = identify(rec['op'], rec['mv'], 'kano')
+    (s_lo, s_hi), (j_lo, j_hi) = fit.S_interval, fit.J_interval
+    assert s_lo <= fit.S <= s_hi and j_lo <= fit.J <= j_hi
+    problem = ValveProblem('kano', rec['op'], rec['mv'])
+    # Every corner of the range lies within a step of pairs that fit about as well.
+    assert problem.mse(s_lo, fit.J) < 1.2 * fit.mse

@@ -248,6 +248,8 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
     else:
         sse_bound = mse_min * problem.n * math.exp(CHI2_95_2DOF / problem.n) * (1 + 1e-12)
     w = half_width
+    # Where no grid point is inside, the optimum itself is, within a step.
+    found = (np.array([S]), np.array([J]), np.array([0]), np.array([0]), resolution)
     for _ in range(grow + 1):
         # At most BOX_POINTS per axis: a region several % wide needs no 0.01 % edges,
         # and at full resolution a poor fit's widest window cost 640 000 runs (36 s).
@@ -256,11 +258,17 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
         j_ax = _axis(J - w, J + w, step, resolution)
         inside = problem.grid(s_ax, j_ax, sse_bound) <= sse_bound
         ii, jj = np.nonzero(inside)
+        if ii.size == 0:
+            # A thin ridge of S-J pairs (a poor fit, its optimum off the coarse lattice)
+            # can slip between the points of a coarsened grid: keep the finer window's.
+            break
+        found = (s_ax, j_ax, ii, jj, step)
         at_edge = (ii.max() == len(s_ax) - 1 or jj.max() == len(j_ax) - 1
                    or (ii.min() == 0 and s_ax[0] > 0) or (jj.min() == 0 and j_ax[0] > 0))
         if not at_edge:
             break
         w *= 2
+    s_ax, j_ax, ii, jj, step = found
     # On a coarsened grid the edge lies within a step outside the last point inside.
     pad = step if step > resolution else 0.0
     return ((round(max(float(s_ax[ii.min()]) - pad, 0.0), 10),
