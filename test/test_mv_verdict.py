@@ -8,13 +8,17 @@ from stiction_ros.app.report_text import size_text
 from stiction_ros.cli.mv_verdict import markdown
 from stiction_ros.sim.closed_loop import write_csv
 from stiction_ros.sim.instrument_cases import instrument_case
-from stiction_ros.study.mv_verdict import jump_rule, MvVerdictStudy, N_SAMPLES, old_rule, read, \
-    Run, runs
+from stiction_ros.study.mv_verdict import jump_rule, MvVerdictStudy, N_SAMPLES, old_rule, \
+    on_time_rule, read, Run, runs
 
 # A fit with a clear band and slip jump that removes 80 % of an ideal valve's MSE.
 STICK_SLIP = {'model': 'kano', 'S': 3.0, 'J': 1.0, 'mse': 0.2, 'improvement': 0.8,
               'S_interval': [2.8, 3.2], 'J_interval': [0.8, 1.2], 'mv_noise_var': 0.01}
 CHAIN = {'mse': 0.012, 'dead_time_s': 2.0, 'lag_s': 3.5, 'offset': -1.5, 'gain': 0.97}
+# Stick-slip refitted behind that valve's dead time and calibration (fits[].behind).
+BEHIND = {'model': 'kano', 'S': 3.1, 'J': 0.9, 'S_interval': [2.9, 3.3],
+          'J_interval': [0.7, 1.1], 'mse': 0.004, 'offset': -1.4, 'gain': 0.98,
+          'dead_time_s': 2.0, 'plausible': True}
 
 
 def test_stick_slip_must_beat_the_best_valve_without_friction_too():
@@ -118,12 +122,14 @@ def test_the_study_tallies_every_rule_on_the_same_records():
     # Each transmitter noise on a third of a case's records, each loop noise beside each.
     assert [r.extra_mv_noise for r in plan[:6]] == [0.0, 1.0, 2.0] * 2
     assert [r.noise for r in plan[:6]] == [0.5] * 3 + [1.0] * 3
-    rows = [{'case': 'a', 'truth': 'stiction', 'answer': 'stiction', 'jump': 'stiction',
-             'old': 'stiction', 'extra_mv_noise': 0.0, 'cannot_tell': None},
-            {'case': 'a', 'truth': 'stiction', 'answer': 'cannot tell', 'jump': 'cannot tell',
-             'old': 'no stiction', 'extra_mv_noise': 1.0, 'cannot_tell': 'noisy_mv'},
-            {'case': 'b', 'truth': 'no stiction', 'answer': 'no stiction', 'jump': 'stiction',
-             'old': 'stiction', 'extra_mv_noise': 0.0, 'cannot_tell': None}]
+    rows = [{'case': 'a', 'truth': 'stiction', 'answer': 'stiction', 'on_time': 'stiction',
+             'jump': 'stiction', 'old': 'stiction', 'extra_mv_noise': 0.0, 'cannot_tell': None},
+            {'case': 'a', 'truth': 'stiction', 'answer': 'cannot tell', 'on_time': 'no stiction',
+             'jump': 'cannot tell', 'old': 'no stiction', 'extra_mv_noise': 1.0,
+             'cannot_tell': 'noisy_mv'},
+            {'case': 'b', 'truth': 'no stiction', 'answer': 'no stiction',
+             'on_time': 'no stiction', 'jump': 'stiction', 'old': 'stiction',
+             'extra_mv_noise': 0.0, 'cannot_tell': None}]
     study = MvVerdictStudy(10, 4, rows, 1.0)
     new, jump, old = study.tally('answer'), study.tally('jump'), study.tally('old')
     assert (new['wrong'], new['cannot_tell'], jump['wrong'], old['wrong']) == (0, 1, 1, 2)
@@ -131,8 +137,9 @@ def test_the_study_tallies_every_rule_on_the_same_records():
     assert old['balanced'] == 0.25
     page = markdown({**study.to_json(), 'run': {'date': 'today', 'machine': 'here'}})
     assert '| **shipped** | 0 | 0/1 | 0/2 | 1 | 0 | 0.750 | 1.000 (67 %) |' in page
-    assert '| `a` | stiction | 2 | 1 / 0 / 1 | 1 / 0 / 1 | 1 / 1 / 0 | 1 `noisy_mv` |' in page
-    assert '| 0 % | 2 | 0 / 0 | 1 / 0 | 1 / 0 | 1.000 / 0.500 / 0.500 |' in page
+    assert ('| `a` | stiction | 2 | 1 / 0 / 1 | 1 / 1 / 0 | 1 / 0 / 1 | 1 / 1 / 0 | '
+            '1 `noisy_mv` |') in page
+    assert '| 0 % | 2 | 0 / 0 | 0 / 0 | 1 / 0 | 1 / 0 | 1.000 / 1.000 / 0.500 / 0.500 |' in page
     # The rules before read the same fits; a still valve stays cannot tell under each.
     fit = {'model': 'kano', 'mse': 1.0, 'S': 3.0, 'J': 1.0, 'S_interval': [2.5, 3.5],
            'J_interval': [0.8, 1.2], 'improvement': 0.9,
@@ -145,6 +152,10 @@ def test_the_study_tallies_every_rule_on_the_same_records():
     assert from_fits([fit]).detected is None
     assert old_rule({}, [{**fit, 'J_interval': [0.0, 0.01]}]) == 'stiction'
     assert jump_rule({}, [{**fit, 'J_interval': [0.0, 0.01]}]) == 'no stiction'
+    # Stick-slip read behind the reading's timing is what only the shipped rule weighs.
+    behind = {**BEHIND, 'mse': 0.4}
+    assert from_fits([{**fit, 'behind': behind}]).detected is True
+    assert on_time_rule({}, [{**fit, 'behind': behind}]) == 'cannot tell'
 
 
 def test_the_page_is_rewritten_from_its_json_without_scoring(tmp_path, capsys):
@@ -152,10 +163,11 @@ def test_the_page_is_rewritten_from_its_json_without_scoring(tmp_path, capsys):
     page, data = tmp_path / 'page.md', tmp_path / 'study.json'
     assert main(['--render-only', '--json', str(data), '--markdown', str(page)]) == 2
     assert 'cannot render' in capsys.readouterr().err and not page.exists()
-    row = {'case': 'a', 'truth': 'no stiction', 'answer': 'no stiction', 'jump': 'stiction',
-           'old': 'stiction', 'extra_mv_noise': 0.0, 'cannot_tell': None}
+    row = {'case': 'a', 'truth': 'no stiction', 'answer': 'no stiction',
+           'on_time': 'no stiction', 'jump': 'stiction', 'old': 'stiction',
+           'extra_mv_noise': 0.0, 'cannot_tell': None}
     study = MvVerdictStudy(10, 1, [row], 1.0).to_json()
     data.write_text(json.dumps({**study, 'run': {'date': 'd', 'machine': 'm'}}))
     assert main(['--render-only', '--json', str(data), '--markdown', str(page)]) == 0
-    assert '| `a` | no stiction | 1 | 0 / 1 / 0 | 1 / 0 / 0 | 1 / 0 / 0 | - |' in \
-        page.read_text()
+    assert ('| `a` | no stiction | 1 | 0 / 1 / 0 | 0 / 1 / 0 | 1 / 0 / 0 | 1 / 0 / 0 | - |'
+            in page.read_text())

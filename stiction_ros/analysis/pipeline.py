@@ -22,8 +22,9 @@ from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, 
                                             ValveProblem)
 from stiction_ros.analysis.measures.still import set_point_test
 from stiction_ros.analysis.record import Record, runs
-from stiction_ros.analysis.verdict import combine, from_fits, NOISE_FIT, plausible, \
-    refuse_still
+from stiction_ros.analysis.stick_slip_behind import fit_behind
+from stiction_ros.analysis.verdict import combine, explains, from_fits, NOISE_FIT, \
+    plausible, refuse_still
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
     indices, still_reading
 
@@ -122,11 +123,12 @@ def fit_models(record, options, progress=None):
         predictions[model] = predict(model, fit, op, mv, segs, ts)
     told = from_fits([f.to_json() for f in fits]) if fits and options.S is None else None
     if told is not None and (told.detected or (
-            told.detected is False and told.play is None and 0 < NOISE_FIT * noise < ideal)):
+            told.code in (None, 'slip_unresolved') and 0 < NOISE_FIT * noise < ideal)):
         # A claim of friction must beat the best valve without it, which real readings
         # call for first (dead time, lag, calibration); so must a claim of none where
-        # an ideal valve leaves more than MV's noise.  Fitted only for those claims, and
-        # not where the user gave S and J: that model is theirs to weigh.
+        # an ideal valve leaves more than MV's noise, and play or an unresolved slip,
+        # which a dead time in the reading imitates.  Not where the user gave S and J:
+        # that model is theirs to weigh.
         # Stick-slip gets the chain's calibration too (an offset and gain on its MV).
         chain = fit_without_friction(op, mv, segs, ts)
         idx = indices(segs)
@@ -138,6 +140,13 @@ def fit_models(record, options, progress=None):
                 # Held to the calibration the valve without friction is held to.
                 if plausible({'offset': offset, 'gain': gain}):
                     fit.extra['calibrated_mse'] = sse / len(idx)
+        if (not explains(chain, noise)
+                and from_fits([f.to_json() for f in fits]).detected is not True):
+            # Where that valve leaves more than noise, friction may hide behind its timing.
+            best = min(fits, key=lambda f: f.mse)
+            behind = fit_behind(op, mv, segs, ts, chain, best.model)
+            if behind is not None:
+                best.extra['behind'] = behind
     return fits, predictions
 
 

@@ -73,6 +73,9 @@ class FitVerdict:
     without_friction : str or None
         The stages of the valve without friction that explains MV where the
         answer rests on it (``no stiction``), else None.
+    read_behind : str or None
+        The dead time and calibration stick-slip was read through where the
+        answer rests on that refit (``stiction``), else None.
 
     """
 
@@ -83,6 +86,7 @@ class FitVerdict:
     play: float | None = None
     code: str | None = None
     without_friction: str | None = None
+    read_behind: str | None = None
 
 
 def from_fits(fits: list[dict]) -> FitVerdict:
@@ -94,9 +98,57 @@ def from_fits(fits: list[dict]) -> FitVerdict:
     fits : list of dict
         Each model's fit as the report writes it: ``model``, ``S``, ``J``,
         ``mse`` and, where known, ``S_interval``, ``J_interval``,
-        ``improvement`` and ``mv_noise_var``.
+        ``improvement``, ``mv_noise_var``, ``frictionless`` (the best valve
+        without friction), ``calibrated_mse`` and ``behind`` (stick-slip
+        refitted behind that valve's dead time and calibration,
+        :mod:`stiction_ros.analysis.stick_slip_behind`).
+
+    Notes
+    -----
+    Where the plain fits do not show stiction, stick-slip read behind the
+    reading's dead time and calibration shows it when its band and jump are
+    clear by the same floors, it removes at least ``MIN_IMPROVEMENT`` of the
+    frictionless valve's MSE with a calibration a working reading has, and it
+    fits MV better than the plain fit does.
 
     """
+    told = _plain(fits)
+    best = min(fits, key=lambda f: f['mse'])
+    behind, chain = best.get('behind'), best.get('frictionless')
+    if (told.detected is not True and behind and chain and shows_behind(behind, chain)
+            and behind['mse'] < _stick_slip_mse(best)):
+        # ... and fits MV better than the plain fit it overrules: play read on time
+        # that fits better is play, whatever a slip behind a dead time makes of it.
+        return _read_behind(behind, chain)
+    return told
+
+
+def shows_behind(behind: dict, chain: dict) -> bool:
+    """Return whether stick-slip behind the reading's timing beats the valve without friction."""
+    s_lo = behind['S_interval'][0] if behind.get('S_interval') else behind['S']
+    j_lo = behind['J_interval'][0] if behind.get('J_interval') else behind['J']
+    return bool(s_lo >= MIN_S and j_lo >= MIN_J and behind['plausible']
+                and behind['mse'] <= (1.0 - MIN_IMPROVEMENT) * chain['mse'])
+
+
+def _read_behind(behind: dict, chain: dict) -> FitVerdict:
+    F, K = chain['mse'], behind['mse']
+    share = 1.0 - K / F if F > 0 else 0.0
+    si, ji = behind['S_interval'], behind['J_interval']
+    late = (f'dead time {behind["dead_time_s"]:.3g} s, ' if behind['dead_time_s'] > 0.0
+            else '')
+    stages = f'{late}MV = {behind["offset"]:.2f} + {behind["gain"]:.3f} x position'
+    return FitVerdict(True, max(0.0, min(1.0, share)), behind['S'], (
+        f'{behind["model"]} read through the timing and calibration of the position reading '
+        f'({stages}) fits MV with '
+        f'S = {behind["S"]:.2f} % (95 % range {si[0]:.2f}-{si[1]:.2f}), J = '
+        f'{behind["J"]:.2f} % (95 % range {ji[0]:.2f}-{ji[1]:.2f}), MSE {K:.4g}, '
+        f'{100 * share:.0f} % below the best valve without friction ({chain_words(chain)}, '
+        f'MSE {F:.4g}): a sticking valve whose slips the plain fits, reading MV as on '
+        'time and calibrated, could not resolve'), read_behind=stages)
+
+
+def _plain(fits: list[dict]) -> FitVerdict:
     best = min(fits, key=lambda f: f['mse'])
     improvement = best.get('improvement')
     interval = best.get('S_interval')
@@ -312,6 +364,8 @@ def combine(osc, sigs, fits, hammerstein=None, detection=None, sizing=None):
             extra['play'] = told.play
         if told.code is not None:
             extra['cannot_tell'] = told.code
+        if told.read_behind is not None:
+            extra['read_behind'] = told.read_behind
         if told.without_friction is not None:
             # The fitted S is what a friction model makes of timing: no size to stand by.
             extra['without_friction'] = told.without_friction

@@ -178,6 +178,13 @@ def size_text(report: dict) -> str:
             (s0, s1), (j0, j1) = best['S_interval'], best['J_interval']
             ranges = f'; 95 %: S {s0:.2f}-{s1:.2f}, J {j0:.2f}-{j1:.2f}'
         text = f'S={best["S"]:.2f} % J={best["J"]:.2f} % ({best["model"]}, {how}{ranges})'
+        b = best.get('behind')
+        if st.get('read_behind') and b:
+            # The refit's size first: the plain fit read MV as on time and calibrated.
+            (s0, s1), (j0, j1) = b['S_interval'], b['J_interval']
+            text = (f'S={b["S"]:.2f} % J={b["J"]:.2f} % ({b["model"]}, identified from MV '
+                    f'behind the reading\'s {st["read_behind"]}; 95 %: S {s0:.2f}-{s1:.2f}, J '
+                    f'{j0:.2f}-{j1:.2f}); the plain fit, which reads MV on time: {text}')
         sized = explained_size(report)
         if sized:
             # The explained size first: read top-down, the plain fit's narrow ranges around

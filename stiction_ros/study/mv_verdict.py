@@ -12,8 +12,10 @@ as ``stiction-analyze`` reads it.  A noisier position transmitter than the
 loops' own (MV noise 1 or 2 %) is added on a third of the runs each, since
 that is where the rules meet their limits.
 
-The shipped rule is scored beside two it grew from, on the same fits: the
-same without a valve without friction to beat (``jump``), and the rule
+The shipped rule is scored beside three it grew from, on the same fits: the
+same without stick-slip refitted behind the reading's dead time and
+calibration (``on_time``), without a valve without friction to beat at all
+(``jump``), and the rule
 before the slip-jump and noise tests (``old``: S's range above ``MIN_S``
 and half of an ideal valve's MSE removed, stiction; else none).  Truth:
 stiction where the case hides friction (Kano with J > 0), no stiction
@@ -43,9 +45,10 @@ NOISES = (0.5, 1.0, 2.0)            # the loop's own noise: MV 0.05, 0.1, 0.2 %
 EXTRA_MV_NOISE = (0.0, 1.0, 2.0)    # % of span, a noisier position transmitter
 N_SAMPLES = 4321
 ANSWERS = ('stiction', 'no stiction', 'cannot tell')
-# The rules scored, by the key of their answer in a row: the shipped one, the same
-# without the frictionless valve to beat, and the rule before the slip-jump and noise tests.
-RULES = ('answer', 'jump', 'old')
+# The rules scored, by the key of their answer in a row: the shipped one, the same without
+# stick-slip refitted behind the reading's timing and calibration, without the frictionless
+# valve to beat at all, and the rule before the slip-jump and noise tests.
+RULES = ('answer', 'on_time', 'jump', 'old')
 
 
 @dataclass(frozen=True)
@@ -87,13 +90,22 @@ def old_rule(stiction: dict, fits: list[dict]) -> str:
     return 'stiction' if banded else 'no stiction'
 
 
-def jump_rule(stiction: dict, fits: list[dict]) -> str:
-    """Return the shipped rule's answer without the valve without friction to beat."""
+def _without(stiction: dict, fits: list[dict], keys: tuple[str, ...]) -> str:
+    """Return the shipped rule's answer on the fits without the entries ``keys``."""
     if stiction.get('cannot_tell') in ('mv_still', 'mv_dead'):
         return 'cannot tell'
-    plain = [{k: v for k, v in f.items() if k not in ('frictionless', 'calibrated_mse')}
-             for f in fits]
-    return ANSWER[from_fits(plain).detected]
+    return ANSWER[from_fits([{k: v for k, v in f.items() if k not in keys}
+                             for f in fits]).detected]
+
+
+def on_time_rule(stiction: dict, fits: list[dict]) -> str:
+    """Return the shipped rule's answer without stick-slip read behind the reading's timing."""
+    return _without(stiction, fits, ('behind',))
+
+
+def jump_rule(stiction: dict, fits: list[dict]) -> str:
+    """Return the shipped rule's answer without the valve without friction to beat."""
+    return _without(stiction, fits, ('frictionless', 'calibrated_mse', 'behind'))
 
 
 def read(run: Run) -> dict:
@@ -125,7 +137,8 @@ def read(run: Run) -> dict:
                 st.get('cannot_tell'), 'mv_dead': True, 'S': None, 'J': None}
     best = min(fits, key=lambda f: f['mse'])
     return {**base, 'answer': st['answer'], 'cannot_tell': st.get('cannot_tell'),
-            'play': st.get('play'), 'jump': jump_rule(st, fits), 'old': old_rule(st, fits),
+            'play': st.get('play'), 'on_time': on_time_rule(st, fits),
+            'jump': jump_rule(st, fits), 'old': old_rule(st, fits),
             'S': best['S'], 'J': best['J'], 'S_interval': best.get('S_interval'),
             'J_interval': best.get('J_interval'), 'improvement': best.get('improvement')}
 
