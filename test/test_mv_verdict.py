@@ -80,7 +80,8 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     # Without the calibration it was never given, no words claim one.
     told = from_fits([{**flat, 'frictionless': rough_chain()}])
     assert 'calibrated' not in told.reason and 'without a clear band' in told.reason
-    # and play is answered from the band, whatever chain a caller attached.
+    # and play is answered from the band, whatever chain a caller attached, until a refit
+    # behind that chain's timing shows a slip (test_stick_slip_behind).
     play = {**STICK_SLIP, 'J': 0.0, 'J_interval': [0.0, 0.01], 'frictionless': rough_chain()}
     assert from_fits([play]).play == 3.0
     assert chain_words({**CHAIN, 'dead_time_s': 0.0, 'lag_s': 12.5, 'offset': 0.0,

@@ -6,6 +6,7 @@ import pytest
 from stiction_ros.analysis.identify import identify
 from stiction_ros.analysis.stick_slip_behind import fit_behind
 from stiction_ros.analysis.verdict import from_fits
+from stiction_ros.analysis.without_friction import fit_without_friction
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.app.report_text import size_text
 from stiction_ros.sim.closed_loop import write_csv
@@ -64,18 +65,21 @@ def test_a_sticking_valve_read_off_in_offset_and_gain_is_found(tmp_path):
 
 
 @pytest.mark.parametrize('case', ['dead_time', 'positioner_calibration'])
-def test_a_healthy_valve_behind_the_same_reading_gives_no_band(case):
-    # What the refit sees in a frictionless valve read late or miscalibrated: no band.
-    record, _ = instrument_case(case, 600006, sample_time=0.5, n_samples=N_SAMPLES)
+def test_a_healthy_valve_behind_its_own_reading_gives_no_band(case):
+    # What the refit sees in a frictionless valve read late or miscalibrated, behind the
+    # valve without friction fitted to it: no band.
+    record, truth = instrument_case(case, 600006, sample_time=0.5, n_samples=N_SAMPLES)
     op, mv = record['op'], record['mv']
     segs = [(0, len(op))]
-    chain = {'dead_time_s': 0.0, 'offset': 0.0, 'gain': 1.0, 'mse': 1.0}
-    if case == 'dead_time':
-        chain['dead_time_s'] = 1.5
+    chain = fit_without_friction(op, mv, segs, 0.5)
     behind = fit_behind(op, mv, segs, 0.5, chain, 'kano')
     assert behind is not None and behind['S_interval'][0] < 0.2
-    plain = identify(op, mv, 'kano', segs, 0.5)
-    assert behind['mse'] <= 1.01 * plain.mse
+    if case == 'dead_time':
+        # Read through its own dead time the valve fits better than read on time.
+        assert abs(behind['dead_time_s'] - truth['sizes']['dead_time']) < 0.3
+        assert behind['mse'] < identify(op, mv, 'kano', segs, 0.5).mse
+    else:
+        assert abs(behind['gain'] - truth['sizes']['positioner_calibration']['gain']) < 0.01
 
 
 def test_play_read_on_time_stays_play():
@@ -92,11 +96,17 @@ def test_play_read_on_time_stays_play():
 
 
 def test_the_refit_is_held_to_every_floor():
-    base = {**PLAY, 'mse': 0.3, 'frictionless': CHAIN}
+    # The plain fit leaves 0.5, the valve without friction 0.6: the refit must come under
+    # both 0.5 and half of 0.6.
+    base = {**PLAY, 'mse': 0.5, 'frictionless': CHAIN}
+    assert from_fits([{**base, 'behind': BEHIND}]).detected is True
     for worse in ({'plausible': False}, {'J_interval': [0.0, 1.3]},
-                  {'S_interval': [0.1, 2.7]}, {'mse': 0.31}):
+                  {'S_interval': [0.1, 2.7]}, {'mse': 0.35}, {'S_interval': None}):
         told = from_fits([{**base, 'behind': {**BEHIND, **worse}}])
         assert told.detected is not True, worse
-    # A chain without a gain leaves no position to read back.
+    assert from_fits([{**base, 'mse': 0.2, 'behind': {**BEHIND, 'mse': 0.25}}]).play == 3.6
+    # A chain without a gain leaves no position to read back, a flat OP no valve to read.
     zero = {**CHAIN, 'gain': 0.0}
     assert fit_behind(np.arange(10.0), np.arange(10.0), [(0, 10)], 1.0, zero, 'kano') is None
+    flat = fit_behind(np.full(50, 40.0), np.full(50, 40.0), [(0, 50)], 1.0, CHAIN, 'kano')
+    assert flat is None

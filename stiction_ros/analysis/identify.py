@@ -250,6 +250,7 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
     w = half_width
     # Where no grid point is inside, the optimum itself is, within a step.
     found = (np.array([S]), np.array([J]), np.array([0]), np.array([0]), resolution)
+    cut = None
     for _ in range(grow + 1):
         # At most BOX_POINTS per axis: a region several % wide needs no 0.01 % edges,
         # and at full resolution a poor fit's widest window cost 640 000 runs (36 s).
@@ -260,21 +261,31 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
         ii, jj = np.nonzero(inside)
         if ii.size == 0:
             # A thin ridge of S-J pairs (a poor fit, its optimum off the coarse lattice)
-            # can slip between the points of a coarsened grid: keep the finer window's.
+            # can slip between the points of a coarsened grid; the finer window's region
+            # went on past its edge, so it reaches this window's edge there.
+            cut = w
             break
         found = (s_ax, j_ax, ii, jj, step)
-        at_edge = (ii.max() == len(s_ax) - 1 or jj.max() == len(j_ax) - 1
-                   or (ii.min() == 0 and s_ax[0] > 0) or (jj.min() == 0 and j_ax[0] > 0))
-        if not at_edge:
+        if not _at_edge(s_ax, j_ax, ii, jj).any():
             break
         w *= 2
     s_ax, j_ax, ii, jj, step = found
     # On a coarsened grid the edge lies within a step outside the last point inside.
     pad = step if step > resolution else 0.0
-    return ((round(max(float(s_ax[ii.min()]) - pad, 0.0), 10),
-             round(float(s_ax[ii.max()]) + pad, 10)),
-            (round(max(float(j_ax[jj.min()]) - pad, 0.0), 10),
-             round(float(j_ax[jj.max()]) + pad, 10)))
+    box = np.array([max(float(s_ax[ii.min()]) - pad, 0.0), float(s_ax[ii.max()]) + pad,
+                    max(float(j_ax[jj.min()]) - pad, 0.0), float(j_ax[jj.max()]) + pad])
+    if cut is not None:
+        # Wider, not cut short: a range that looks clear of a floor must be so.
+        reach = np.array([max(S - cut, 0.0), S + cut, max(J - cut, 0.0), J + cut])
+        box = np.where(_at_edge(s_ax, j_ax, ii, jj), reach, box)
+    lo_s, hi_s, lo_j, hi_j = (round(float(v), 10) for v in box)
+    return (lo_s, hi_s), (lo_j, hi_j)
+
+
+def _at_edge(s_ax, j_ax, ii, jj) -> np.ndarray:
+    """Return whether the region touches its window's low S, high S, low J, high J edge."""
+    return np.array([ii.min() == 0 and s_ax[0] > 0, ii.max() == len(s_ax) - 1,
+                     jj.min() == 0 and j_ax[0] > 0, jj.max() == len(j_ax) - 1])
 
 
 # Where the search's best S comes within this share of the box's S side, the box may

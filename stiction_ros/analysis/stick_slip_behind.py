@@ -25,13 +25,14 @@ itself (:func:`.verdict.from_fits`).
 
 import numpy as np
 
-from stiction_ros.analysis.identify import identify, ValveProblem
+from stiction_ros.analysis.identify import confidence_box, identify, ValveProblem
 from stiction_ros.analysis.verdict import plausible
 from stiction_ros.analysis.without_friction import calibrated, indices, shift
+from stiction_ros.errors import IdentifyError
 
 
 def fit_behind(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
-               chain: dict, model: str) -> dict | None:
+               chain: dict, model: str, beat: float = np.inf) -> dict | None:
     """
     Return the fit of ``model`` behind the dead time and calibration of ``chain``.
 
@@ -48,16 +49,22 @@ def fit_behind(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
         (:func:`.without_friction.fit_without_friction`).
     model : str
         ``'kano'`` or ``'choudhury'``.
+    beat : float
+        The MSE (MV's units) the refit must come under for its 95 % ranges
+        to be worth their cost; above it they are not computed.
 
     Returns
     -------
     dict or None
         ``model``, ``S``, ``J``, their 95 % ranges ``S_interval`` and
-        ``J_interval`` (% of the valve's own travel), ``mse`` (MV's units,
-        after the calibration), ``offset`` and ``gain`` (MV = offset + gain x
-        position), ``dead_time_s`` and ``plausible`` (whether that
-        calibration is one a working reading has); None where the chain's
-        gain leaves no position to read back (zero or not finite).
+        ``J_interval`` (% of the valve's own travel, holding the dead time
+        and calibration fixed; None where the refit does not beat ``beat``),
+        ``mse`` (MV's units, after the calibration), ``offset`` and ``gain``
+        (MV = offset + gain x position), ``dead_time_s`` and ``plausible``
+        (whether that calibration is one a working reading has); None where
+        the chain's gain leaves no position to read back (zero or not
+        finite), or no valve can be identified behind the dead time (OP flat
+        there).
 
     """
     gain = chain['gain']
@@ -67,14 +74,21 @@ def fit_behind(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
                chain['dead_time_s'] / sample_time, segments)
     mv = np.asarray(mv, dtype=np.float64)
     position = (mv - chain['offset']) / gain
-    fit = identify(op, position, model, segments, sample_time)
-    out = ValveProblem(model, op, position, segments, None, sample_time).output(fit.S, fit.J)
+    try:
+        fit = identify(op, position, model, segments, sample_time, interval=False)
+    except IdentifyError:
+        # The plain fits stand; nothing behind the dead time can be read.
+        return None
+    problem = ValveProblem(model, op, position, segments, None, sample_time)
+    out = problem.output(fit.S, fit.J)
     idx = indices(segments)
     if not np.all(np.isfinite(out[idx])):
         return None
     offset, g, sse = calibrated(out, mv, idx)
-    return {'model': model, 'S': fit.S, 'J': fit.J,
-            'S_interval': list(fit.S_interval), 'J_interval': list(fit.J_interval),
-            'mse': sse / len(idx), 'offset': offset, 'gain': g,
+    s_range = j_range = None
+    if sse / len(idx) <= beat:
+        s_range, j_range = (list(r) for r in confidence_box(problem, fit.S, fit.J, fit.mse))
+    return {'model': model, 'S': fit.S, 'J': fit.J, 'S_interval': s_range,
+            'J_interval': j_range, 'mse': sse / len(idx), 'offset': offset, 'gain': g,
             'dead_time_s': chain['dead_time_s'],
             'plausible': plausible({'offset': offset, 'gain': g})}

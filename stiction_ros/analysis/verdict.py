@@ -16,6 +16,15 @@ because MV's noise is most of it (the fit's MSE within ``NOISE_FIT`` times
 the noise variance) is ``cannot tell`` too: a 50 % reduction cannot be had
 from a reading whose noise is over half of what an ideal valve misses.
 
+A real reading differs from OP first through its timing and instruments, so
+a claim must also beat the best valve without friction (dead time, lag,
+calibration), and ``no stiction`` must be explained by one.  A reading late
+or off in offset and gain can also hide a sticking valve from the plain fits
+(a dead time makes stick-slip look like play): where they show no stiction,
+stick-slip refitted behind that valve's dead time and calibration answers
+``stiction`` when it clears the same floors, removes ``MIN_IMPROVEMENT`` of
+that valve's MSE and fits better than the plain fit, play included.
+
 With neither a measured position nor the learned detector, the OP/PV
 signatures vote: each decided signature counts 1 for stiction and 0 against,
 weighted by ``WEIGHTS``; an undetermined one does not vote.  ``score`` is the
@@ -59,10 +68,11 @@ class FitVerdict:
     detected : bool or None
         True for stiction, False for none, None for ``cannot tell``.
     score : float
-        The share of an ideal valve's MSE the best fit removes (0-1), 0
-        where the answer rests on no stick-slip.
+        The share of an ideal valve's MSE the best fit removes (0-1); behind
+        the reading's timing, the share of the valve without friction's MSE
+        the refit removes; 0 where the answer rests on no stick-slip.
     size : float
-        The best fit's S (% of span).
+        The best fit's S (% of span), the refit's behind the reading's timing.
     reason : str
         The sentence the report prints.
     play : float or None
@@ -125,8 +135,10 @@ def from_fits(fits: list[dict]) -> FitVerdict:
 
 def shows_behind(behind: dict, chain: dict) -> bool:
     """Return whether stick-slip behind the reading's timing beats the valve without friction."""
-    s_lo = behind['S_interval'][0] if behind.get('S_interval') else behind['S']
-    j_lo = behind['J_interval'][0] if behind.get('J_interval') else behind['J']
+    if not behind.get('S_interval') or not behind.get('J_interval'):
+        # Not computed where the refit fit too poorly to claim anything.
+        return False
+    s_lo, j_lo = behind['S_interval'][0], behind['J_interval'][0]
     return bool(s_lo >= MIN_S and j_lo >= MIN_J and behind['plausible']
                 and behind['mse'] <= (1.0 - MIN_IMPROVEMENT) * chain['mse'])
 
@@ -422,8 +434,10 @@ def refuse_still(stiction: dict, still: Still, sp_test: SetPointTest | None) -> 
         code, why = 'mv_still', (f'{moved}, and {sp_test.sentence()}; a friction '
                                  'band wider than that travel or a valve held (no air, a '
                                  'handwheel): a valve travel test tells which')
-    # A band read from a still MV is no play either: nothing of how it moves is known.
+    # A band read from a still MV is no play either, nor a slip behind its timing:
+    # nothing of how it moves is known.
     stiction.pop('play', None)
+    stiction.pop('read_behind', None)
     stiction.update(detected=None, answer=ANSWER[None], cannot_tell=code, reason=why)
     if sp_test is not None:
         stiction['set_point_test'] = sp_test.to_json()

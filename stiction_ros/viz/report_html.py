@@ -162,7 +162,8 @@ def _fits(report: dict) -> list:
              num(f.get('ideal_valve_mse')), e(f['source']), span(f.get('S_interval')),
              span(f.get('J_interval'))] for f in report['fits']]
     rows += [[e(f'{b["model"]}, read behind'), num(b['S'], unit='%'), num(b['J'], unit='%'),
-              num(b['mse']), '-', 'refitted behind the dead time and calibration',
+              num(b['mse']), '-', 'refitted behind the dead time and calibration (its MSE '
+              'after its calibration)',
               span(b.get('S_interval')), span(b.get('J_interval'))]
              for b in (f.get('behind') for f in report['fits']) if b]
     return ['<h2>Model fits (MSE of eq. 2.8 against the measured MV)</h2>',
