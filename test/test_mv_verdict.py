@@ -86,6 +86,8 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     assert from_fits([play]).play == 3.0
     assert chain_words({**CHAIN, 'dead_time_s': 0.0, 'lag_s': 12.5, 'offset': 0.0,
                         'gain': 1.0}) == 'lag 12.5 s'
+    assert chain_words({**CHAIN, 'stop_low': None, 'stop_high': 87.25}).endswith(
+        'x OP, high travel stop at 87.2 %')
 
 
 def test_a_lagged_miscalibrated_reading_of_a_healthy_valve_is_not_called_stiction(tmp_path):

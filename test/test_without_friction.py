@@ -111,3 +111,20 @@ def test_the_closed_form_calibration_is_the_least_squares_line():
     offset, gain, sse = calibrated(y, mv, idx)
     assert abs(offset - c0) < 1e-9 and abs(gain - c1) < 1e-12
     assert abs(sse - float(np.sum((mv[idx] - c0 - c1 * y[idx]) ** 2))) < 1e-9
+
+
+def test_a_travel_stop_is_found_and_leaves_the_calibration_alone():
+    op = _op(seed=5)
+    segs = [(0, 3000)]
+    position = shift(op, 4.0, segs)
+    stop = float(np.quantile(position, 0.95))
+    noise = np.random.default_rng(6).normal(0, 0.1, op.size)
+    held = 0.5 + 1.01 * np.minimum(position, stop) + noise
+    fit = fit_without_friction(op, held, segs, 0.5)
+    assert fit['stop_low'] is None and abs(fit['stop_high'] - (0.5 + 1.01 * stop)) < 0.2
+    # Left out, the stop pulled the gain down; with it, the reading's own calibration.
+    assert abs(fit['gain'] - 1.01) < 0.005 and abs(fit['offset'] - 0.5) < 0.3
+    assert fit['mse'] < 1.05 * 0.1 ** 2
+    # Without a stop none is claimed from the noise.
+    free = fit_without_friction(op, 0.5 + 1.01 * position + noise, segs, 0.5)
+    assert free['stop_low'] is None and free['stop_high'] is None

@@ -7,12 +7,15 @@ transmitter lag, reading a little off in offset and gain.  Before the
 verdict calls the misfit of an ideal valve friction, or its absence, it fits
 that chain to MV::
 
-    OP -> dead time d -> first-order lag tau -> offset + gain * position -> MV
+    OP -> dead time d -> first-order lag tau -> travel stops
+       -> offset + gain * position -> MV
 
 on a grid of ``d`` (quarter samples up to 4, whole samples beyond) and
 ``tau`` (:data:`TAU_GRID`), then refines both by a compass search, with
-offset and gain solved in closed form at every point.  Numpy and the built lag
-kernel only: the default analysis loads no scipy.  ``--explain`` fits the
+offset and gain solved in closed form at every point; a travel stop at either
+end is then kept where it fits, the calibration solved again with it
+(:func:`_stops`).  Numpy and the built lag kernel only: the default analysis
+loads no scipy.  ``--explain`` fits the
 fuller chain (a second lag, a rate limit, travel stops) with scipy's
 optimisers, from the same limits, grid and dead-time shift
 (:mod:`stiction_ros.analysis.mismatch.instrument`).
@@ -37,6 +40,12 @@ MAX_SEARCH = 20_000
 # The compass search after the grid: at most this many moves, down to this step (samples).
 MAX_MOVES = 120
 STEP_END = 0.01
+# Travel stops: levels tried on each side, and the samples a stop must hold to count
+# (as --explain's ACTIVE_SAMPLES: a stop that no excursion reaches is no stage).
+STOP_LEVELS = 41
+STOP_SAMPLES = 8
+# The chi-square quantile (one degree of freedom, 1 %) a stop's SSE reduction must pass.
+STOP_CHI2 = 6.635
 
 
 def limits(sample_time: float) -> tuple[float, float]:
@@ -115,7 +124,8 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
     dict
         ``mse`` on the segments' samples, ``dead_time_s`` and ``lag_s``
         (seconds), ``offset`` and ``gain`` (MV = offset + gain x OP
-        through the dead time and lag).
+        through the dead time and lag), ``stop_low`` and ``stop_high``
+        (MV held at or beyond these, % of span; None where no stop fits).
 
     """
     # A valve cannot travel past its stops whatever OP asks, as for the ideal valve.
@@ -158,9 +168,48 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
             step_d, step_t = step_d / 2, step_t / 2
     idx = indices(segments)
     y = lagged(shift(op, d, segments), tau, carried_runs(segments, op))
-    offset, gain, total = calibrated(y, mv, idx)
+    low, high, (offset, gain, total) = _stops(y, mv, idx, calibrated(y, mv, idx))
     return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
-            'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain)}
+            'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain),
+            'stop_low': low, 'stop_high': high}
+
+
+Calibration = tuple[float, float, float]
+
+
+def _stops(y: np.ndarray, mv: np.ndarray, idx: np.ndarray,
+           fit: Calibration) -> tuple[float | None, float | None, Calibration]:
+    """
+    Return (low stop, high stop, (offset, gain, SSE)): the valve held at travel stops.
+
+    A valve held short of what OP asks at one end of its travel (a limit stop,
+    a positioner's range) is no friction.  Each stop is looked for on the
+    chain's position ``y`` (before the calibration, which is solved again at
+    each level: a stop left out pulls the gain down) between its 85th and
+    100th percentile (15th and 0th), on :data:`STOP_LEVELS` levels, and kept
+    where it lowers the SSE significantly (:data:`STOP_CHI2`) and holds at
+    least :data:`STOP_SAMPLES` samples.
+    ``fit``: (offset, gain, SSE) without stops.  The stops are returned in
+    MV's units, None where none fits.
+    """
+    # The levels are chosen on at most MAX_SEARCH samples, as the chain's stages are.
+    near = idx[:MAX_SEARCH]
+    found: list[float | None] = [None, None]
+    for side, clip, qs in ((1, np.minimum, (0.85, 1.0)), (0, np.maximum, (0.0, 0.15))):
+        a, b = (float(v) for v in np.quantile(y[near], qs))
+        if not b > a:
+            continue
+        levels = np.linspace(a, b, STOP_LEVELS)
+        at = min(levels, key=lambda x: calibrated(clip(y, x), mv, near)[2])
+        held = int(np.sum(y[idx] > at) if side else np.sum(y[idx] < at))
+        there = calibrated(clip(y, at), mv, idx)
+        # One more parameter: kept where the likelihood ratio says it is no noise-fitting.
+        if (held >= STOP_SAMPLES and there[2] > 0.0
+                and len(idx) * math.log(fit[2] / there[2]) > STOP_CHI2):
+            found[side], y, fit = float(at), clip(y, at), there
+    offset, gain, _ = fit
+    low, high = (None if x is None else offset + gain * x for x in found)
+    return low, high, fit
 
 
 def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
