@@ -6,8 +6,10 @@ from scipy.signal import lfilter
 from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
+from stiction_ros.analysis.verdict import chain_words
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
     lagged, shift
+from stiction_ros.kernels.chain import limited
 
 
 def _op(n=3000, seed=0):
@@ -27,8 +29,9 @@ def test_a_known_chain_is_recovered_to_its_noise():
     fit = fit_without_friction(op, truth + noise, segs, 0.5)
     assert abs(fit['dead_time_s'] - 3.4) < 0.1 and abs(fit['lag_s'] - 6.0) < 0.3
     assert abs(fit['offset'] - 1.5) < 0.2 and abs(fit['gain'] - 0.97) < 0.005
-    # Nothing left but the noise it was read with.
+    # Nothing left but the noise it was read with, and no stage it was not read through.
     assert fit['mse'] < 1.05 * 0.05 ** 2
+    assert fit['rate_pct_s'] is None and fit['stop_low'] is None and fit['stop_high'] is None
 
 
 def test_the_lag_kernel_is_a_first_order_filter_at_rest_on_each_run():
@@ -128,3 +131,17 @@ def test_a_travel_stop_is_found_and_leaves_the_calibration_alone():
     # Without a stop none is claimed from the noise.
     free = fit_without_friction(op, 0.5 + 1.01 * position + noise, segs, 0.5)
     assert free['stop_low'] is None and free['stop_high'] is None
+
+
+def test_an_actuator_rate_limit_is_found_where_a_lag_alone_leaves_the_ramps():
+    op = _op(seed=7)
+    segs = [(0, 3000)]
+    runs = carried_runs(segs, op)
+    # OP's steps (up to 16 %) ramp at 0.9 % a sample, 1.8 %/s at 0.5 s sampling.
+    position = limited(shift(op, 3.0, segs), runs, 0.9)
+    mv = 0.3 + 0.99 * lagged(position, 2.0, runs)
+    mv += np.random.default_rng(8).normal(0, 0.1, op.size)
+    fit = fit_without_friction(op, mv, segs, 0.5)
+    assert abs(fit['rate_pct_s'] - 1.8) < 0.3 * 1.8
+    assert fit['mse'] < 1.3 * 0.1 ** 2 and abs(fit['dead_time_s'] - 1.5) < 0.3
+    assert 'rate limit' in chain_words(fit)

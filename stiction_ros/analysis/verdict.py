@@ -248,6 +248,8 @@ def chain_words(chain: dict) -> str:
         words.append(f'lag {chain["lag_s"]:.3g} s')
     if abs(chain['offset']) >= 0.1 or abs(chain['gain'] - 1.0) >= 0.005:
         words.append(f'MV = {chain["offset"]:.2f} + {chain["gain"]:.3f} x OP')
+    if chain.get('rate_pct_s') is not None:
+        words.append(f'rate limit {chain["rate_pct_s"]:.3g} %/s')
     for name, key in (('low', 'stop_low'), ('high', 'stop_high')):
         if chain.get(key) is not None:
             words.append(f'{name} travel stop at {chain[key]:.3g} %')

@@ -7,20 +7,21 @@ transmitter lag, reading a little off in offset and gain.  Before the
 verdict calls the misfit of an ideal valve friction, or its absence, it fits
 that chain to MV::
 
-    OP -> dead time d -> first-order lag tau -> travel stops
+    OP -> dead time d -> rate limit -> first-order lag tau -> travel stops
        -> offset + gain * position -> MV
 
 on a grid of ``d`` (quarter samples up to 4, whole samples beyond) and
 ``tau`` (:data:`TAU_GRID`), then refines both by a compass search, with
-offset and gain solved in closed form at every point; a travel stop at either
-end is then kept where it fits, the calibration solved again with it
-(:func:`_stops`).  Numpy and the built lag kernel only: the default analysis
-loads no scipy.  ``--explain`` fits the
+offset and gain solved in closed form at every point; a rate limit
+(:func:`_rate`) and a travel stop at either end (:func:`_stops`) are then kept
+where they fit significantly.  Numpy and the built lag and rate kernels only:
+the default analysis loads no scipy.  ``--explain`` fits the
 fuller chain (a second lag, a rate limit, travel stops) with scipy's
 optimisers, from the same limits, grid and dead-time shift
 (:mod:`stiction_ros.analysis.mismatch.instrument`).
 """
 
+from collections.abc import Callable
 import math
 
 import numpy as np
@@ -28,6 +29,7 @@ import numpy as np
 from stiction_ros.analysis.fit_core import carried_runs
 from stiction_ros.analysis.measures.still import Still, still_valve
 from stiction_ros.analysis.verdict import explains
+from stiction_ros.kernels.chain import limited
 from stiction_ros.kernels.lags import lag_from_rest
 
 # Longest dead time and lag looked for, in samples and in seconds (the smaller wins):
@@ -44,8 +46,11 @@ STEP_END = 0.01
 # (as --explain's ACTIVE_SAMPLES: a stop that no excursion reaches is no stage).
 STOP_LEVELS = 41
 STOP_SAMPLES = 8
-# The chi-square quantile (one degree of freedom, 1 %) a stop's SSE reduction must pass.
+# The chi-square quantile (one degree of freedom, 1 %) a stop's or a rate limit's SSE
+# reduction must pass.
 STOP_CHI2 = 6.635
+# Rate limits tried, as shares of OP's largest step in a sample.
+RATE_LEVELS = (0.03, 0.05, 0.08, 0.12, 0.18, 0.25, 0.35, 0.5, 0.7)
 
 
 def limits(sample_time: float) -> tuple[float, float]:
@@ -124,7 +129,9 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
     dict
         ``mse`` on the segments' samples, ``dead_time_s`` and ``lag_s``
         (seconds), ``offset`` and ``gain`` (MV = offset + gain x OP
-        through the dead time and lag), ``stop_low`` and ``stop_high``
+        through the dead time and lag), ``rate_pct_s`` (the actuator's
+        largest speed, % per second; None where no rate limit fits),
+        ``stop_low`` and ``stop_high``
         (MV held at or beyond these, % of span; None where no stop fits).
 
     """
@@ -143,15 +150,62 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
                              np.arange(4.0, d_max + 1e-9, 1.0)])
     t_axis = [t for t in TAU_GRID if t <= tau_max]
     cache: dict = {}
+    rate = 0.0
+
+    def _at_rate(r: float) -> Callable[[float, float], float]:
+        def sse_r(d: float, tau: float) -> float:
+            key = (round(d, 9), round(tau, 9), r)
+            if key not in cache:
+                u = shift(op_s, d, search)
+                y = lagged(limited(u, runs, r) if r > 0.0 else u, tau, runs)
+                cache[key] = calibrated(y, mv_s, idx)[2]
+            return cache[key]
+        return sse_r
 
     def sse(d: float, tau: float) -> float:
-        key = (round(d, 9), round(tau, 9))
-        if key not in cache:
-            y = lagged(shift(op_s, d, search), tau, runs)
-            cache[key] = calibrated(y, mv_s, idx)[2]
-        return cache[key]
+        return _at_rate(rate)(d, tau)
 
     here, d, tau = min((sse(d, t), d, t) for d in d_axis for t in t_axis)
+    here, d, tau = _compass(sse, here, d, tau, d_max, tau_max)
+    rate, tau = _rate(shift(op_s, d, search), mv_s, idx, runs, t_axis, tau, here)
+    if rate > 0.0:
+        # The ramps read as a longer dead time and a shorter lag before the rate was
+        # known, and the SSE is steep in the rate: the three are searched again together,
+        # shorter dead times on a grid first.
+        grid = [(_at_rate(r)(x, t), x, t, r)
+                for r in rate * np.array([0.7, 0.85, 1.0, 1.15, 1.3])
+                for x in np.arange(max(d - 4.0, 0.0), d + 1e-9, 0.5) for t in t_axis]
+        _, d, tau, rate = min(grid)
+        step = [0.5, max(0.3, 0.5 * tau), 0.1]
+        x, here = (d, tau, math.log(rate)), sse(d, tau)
+        for _ in range(MAX_MOVES):
+            moves = [m for m in np.ndindex(3, 3, 3) if m != (1, 1, 1)]
+            trials = [(min(max(x[0] + (a - 1) * step[0], 0.0), d_max),
+                       min(max(x[1] + (b - 1) * step[1], 0.0), tau_max),
+                       x[2] + (c - 1) * step[2]) for a, b, c in moves]
+            there, y = min((_at_rate(math.exp(t[2]))(t[0], t[1]), t) for t in trials)
+            if there < here:
+                here, x = there, y
+            elif max(step[0], step[1]) < STEP_END and step[2] < 0.005:
+                break
+            else:
+                step = [v / 2 for v in step]
+        d, tau, rate = x[0], x[1], math.exp(x[2])
+    idx = indices(segments)
+    full = carried_runs(segments, op)
+    u = shift(op, d, segments)
+    # Without a rate limit the kernel is not called: nothing to build or load.
+    y = lagged(limited(u, full, rate) if rate > 0.0 else u, tau, full)
+    low, high, (offset, gain, total) = _stops(y, mv, idx, calibrated(y, mv, idx))
+    return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
+            'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain),
+            'rate_pct_s': float(rate / sample_time) if rate > 0.0 else None,
+            'stop_low': low, 'stop_high': high}
+
+
+def _compass(sse: Callable[[float, float], float], here: float, d: float, tau: float,
+             d_max: float, tau_max: float) -> tuple[float, float, float]:
+    """Return (SSE, d, tau) of a compass search on ``sse`` from (``d``, ``tau``)."""
     step_d, step_t = 0.5, max(0.3, 0.5 * tau)
     for _ in range(MAX_MOVES):
         # A compass search from the grid's best: a dead time and a lag trade off along a
@@ -166,12 +220,39 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
             break
         else:
             step_d, step_t = step_d / 2, step_t / 2
-    idx = indices(segments)
-    y = lagged(shift(op, d, segments), tau, carried_runs(segments, op))
-    low, high, (offset, gain, total) = _stops(y, mv, idx, calibrated(y, mv, idx))
-    return {'mse': total / len(idx), 'dead_time_s': float(d * sample_time),
-            'lag_s': float(tau * sample_time), 'offset': float(offset), 'gain': float(gain),
-            'stop_low': low, 'stop_high': high}
+    return here, d, tau
+
+
+def _rate(u: np.ndarray, mv: np.ndarray, idx: np.ndarray, runs, t_axis, tau: float,
+          sse: float) -> tuple[float, float]:
+    """
+    Return (rate limit per sample, lag): the actuator's largest speed where one fits.
+
+    An actuator that cannot move faster than its air supply allows turns OP's
+    steps into ramps, which a lag imitates only in part.  The rate is looked
+    for on :data:`RATE_LEVELS` shares of OP's largest step (``u``: OP through
+    the dead time), each with every lag of ``t_axis`` up to ``tau``, and kept where the SSE
+    drops past :data:`STOP_CHI2` and it limits at least :data:`STOP_SAMPLES`
+    steps; else (0, ``tau``).  ``sse``: the chain's SSE without it.
+    """
+    steps = np.abs(np.diff(u[idx]))
+    top = float(np.max(steps)) if len(steps) else 0.0
+    if top <= 0.0:
+        return 0.0, tau
+    best = (sse, 0.0, tau)
+    # The lag had imitated part of the ramps: with a rate limit it is no longer.
+    shorter = sorted({t for t in t_axis if t < tau} | {tau})
+    for r in top * np.asarray(RATE_LEVELS):
+        ramped = limited(u, runs, float(r))
+        for t in shorter:
+            there = calibrated(lagged(ramped, t, runs), mv, idx)[2]
+            if there < best[0]:
+                best = (there, float(r), t)
+    there, rate, t = best
+    if (rate > 0.0 and there > 0.0 and int(np.sum(steps > rate)) >= STOP_SAMPLES
+            and len(idx) * math.log(sse / there) > STOP_CHI2):
+        return rate, t
+    return 0.0, tau
 
 
 Calibration = tuple[float, float, float]
@@ -180,36 +261,41 @@ Calibration = tuple[float, float, float]
 def _stops(y: np.ndarray, mv: np.ndarray, idx: np.ndarray,
            fit: Calibration) -> tuple[float | None, float | None, Calibration]:
     """
-    Return (low stop, high stop, (offset, gain, SSE)): the valve held at travel stops.
+    Return (low stop, high stop, (offset, gain, SSE)): the valve held at a travel stop.
 
     A valve held short of what OP asks at one end of its travel (a limit stop,
-    a positioner's range) is no friction.  Each stop is looked for on the
+    a positioner's range) is no friction.  A stop is looked for on the
     chain's position ``y`` (before the calibration, which is solved again at
     each level: a stop left out pulls the gain down) between its 85th and
     100th percentile (15th and 0th), on :data:`STOP_LEVELS` levels, and kept
     where it lowers the SSE significantly (:data:`STOP_CHI2`) and holds at
-    least :data:`STOP_SAMPLES` samples.
-    ``fit``: (offset, gain, SSE) without stops.  The stops are returned in
-    MV's units, None where none fits.
+    least :data:`STOP_SAMPLES` samples.  One end only, the more significant:
+    stops at both ends of a narrow travel are a limit cycle's reversals, where
+    a sticking valve rests, not two limits.  ``fit``: (offset, gain, SSE)
+    without a stop.  The stop is returned in MV's units, None where none fits.
     """
     # The levels are chosen on at most MAX_SEARCH samples, as the chain's stages are.
     near = idx[:MAX_SEARCH]
-    found: list[float | None] = [None, None]
+    best: tuple[float, int, float, Calibration] | None = None
     for side, clip, qs in ((1, np.minimum, (0.85, 1.0)), (0, np.maximum, (0.0, 0.15))):
         a, b = (float(v) for v in np.quantile(y[near], qs))
         if not b > a:
             continue
         levels = np.linspace(a, b, STOP_LEVELS)
-        at = min(levels, key=lambda x: calibrated(clip(y, x), mv, near)[2])
+        at = float(min(levels, key=lambda x: calibrated(clip(y, x), mv, near)[2]))
         held = int(np.sum(y[idx] > at) if side else np.sum(y[idx] < at))
         there = calibrated(clip(y, at), mv, idx)
         # One more parameter: kept where the likelihood ratio says it is no noise-fitting.
-        if (held >= STOP_SAMPLES and there[2] > 0.0
-                and len(idx) * math.log(fit[2] / there[2]) > STOP_CHI2):
-            found[side], y, fit = float(at), clip(y, at), there
+        if held >= STOP_SAMPLES and there[2] > 0.0:
+            ratio = len(idx) * math.log(fit[2] / there[2])
+            if ratio > STOP_CHI2 and (best is None or ratio > best[0]):
+                best = (ratio, side, at, there)
+    if best is None:
+        return None, None, fit
+    _, side, at, fit = best
     offset, gain, _ = fit
-    low, high = (None if x is None else offset + gain * x for x in found)
-    return low, high, fit
+    stop = offset + gain * at
+    return (None, stop, fit) if side else (stop, None, fit)
 
 
 def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,

@@ -6,7 +6,7 @@ from stiction_ros._jit import njit
 from stiction_ros.kernels.arrays import Floats, Ints
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, aot='f8[:](f8[::1], i8[::1], i8[::1], f8)')
 def rate_limit(u: Floats, starts: Ints, stops: Ints, rate: float) -> Floats:
     """
     Return ``u`` with its change limited to ``rate`` per sample, at rest at each segment start.
