@@ -8,7 +8,7 @@ from stiction_ros.analysis.mismatch import instrument as ins
 from stiction_ros.analysis.mismatch.frictionless import fit_frictionless
 from stiction_ros.analysis.verdict import chain_words
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
-    lagged, shift
+    lagged, shift, significant
 from stiction_ros.kernels.chain import limited
 
 
@@ -145,3 +145,26 @@ def test_an_actuator_rate_limit_is_found_where_a_lag_alone_leaves_the_ramps():
     assert abs(fit['rate_pct_s'] - 1.8) < 0.3 * 1.8
     assert fit['mse'] < 1.3 * 0.1 ** 2 and abs(fit['dead_time_s'] - 1.5) < 0.3
     assert 'rate limit' in chain_words(fit)
+
+
+def test_a_stage_must_remove_a_third_and_pass_on_its_effective_samples():
+    rng = np.random.default_rng(9)
+    white = rng.normal(0, 1, 4000)
+    # A slow misfit: the same 4 000 samples carry a few independent ones.
+    slow = lfilter([1.0], [1, -0.999], rng.normal(0, 1, 4000))
+    assert significant(1.0, 0.6, white)
+    assert not significant(1.0, 0.6, slow)
+    # A small share of the misfit is no stage, however many samples back it.
+    assert not significant(1.0, 0.7, white)
+    assert significant(1.0, 0.0, white) and not significant(0.0, 0.0, white)
+
+
+def test_a_limit_cycle_is_no_pair_of_travel_stops():
+    # A sticking valve's rests at its reversals, read by a valve without friction: the
+    # extremes look held, but clipping them removes little of the misfit (on this seed a
+    # one-parameter likelihood-ratio test alone kept a low stop at 48.5 %).
+    from stiction_ros.sim.instrument_cases import instrument_case
+    rec, _ = instrument_case('clean_sticky', 600001, sample_time=1.0, n_samples=4321)
+    fit = fit_without_friction(rec['op'], rec['mv'], [(0, 4321)], 1.0)
+    assert fit['stop_low'] is None and fit['stop_high'] is None
+    assert fit['rate_pct_s'] is None

@@ -47,10 +47,15 @@ STEP_END = 0.01
 STOP_LEVELS = 41
 STOP_SAMPLES = 8
 # The chi-square quantile (one degree of freedom, 1 %) a stop's or a rate limit's SSE
-# reduction must pass.
+# reduction must pass, on the residuals' effective number of samples (significant).
 STOP_CHI2 = 6.635
-# Rate limits tried, as shares of OP's largest step in a sample.
+# The share of the chain's SSE a stop or a rate limit must remove (a real one removes most
+# of it: on the development seeds a missing stop left 2-25 times MV's noise variance).
+MIN_STAGE_DROP = 1.0 / 3.0
+# Rate limits tried, as shares of OP's largest step in a sample; and the moves of the
+# joint refinement of dead time, lag and rate (each tries 26 neighbours).
 RATE_LEVELS = (0.03, 0.05, 0.08, 0.12, 0.18, 0.25, 0.35, 0.5, 0.7)
+RATE_MOVES = 40
 
 
 def limits(sample_time: float) -> tuple[float, float]:
@@ -129,8 +134,9 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
     dict
         ``mse`` on the segments' samples, ``dead_time_s`` and ``lag_s``
         (seconds), ``offset`` and ``gain`` (MV = offset + gain x OP
-        through the dead time and lag), ``rate_pct_s`` (the actuator's
-        largest speed, % per second; None where no rate limit fits),
+        through the dead time, rate limit, lag and stop), ``rate_pct_s``
+        (the actuator's largest speed, % per second; None where no rate
+        limit fits),
         ``stop_low`` and ``stop_high``
         (MV held at or beyond these, % of span; None where no stop fits).
 
@@ -175,10 +181,10 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
         grid = [(_at_rate(r)(x, t), x, t, r)
                 for r in rate * np.array([0.7, 0.85, 1.0, 1.15, 1.3])
                 for x in np.arange(max(d - 4.0, 0.0), d + 1e-9, 0.5) for t in t_axis]
-        _, d, tau, rate = min(grid)
+        _, d, tau, rate = min(grid + [(sse(d, tau), d, tau, rate)])
         step = [0.5, max(0.3, 0.5 * tau), 0.1]
         x, here = (d, tau, math.log(rate)), sse(d, tau)
-        for _ in range(MAX_MOVES):
+        for _ in range(RATE_MOVES):
             moves = [m for m in np.ndindex(3, 3, 3) if m != (1, 1, 1)]
             trials = [(min(max(x[0] + (a - 1) * step[0], 0.0), d_max),
                        min(max(x[1] + (b - 1) * step[1], 0.0), tau_max),
@@ -231,11 +237,12 @@ def _rate(u: np.ndarray, mv: np.ndarray, idx: np.ndarray, runs, t_axis, tau: flo
     An actuator that cannot move faster than its air supply allows turns OP's
     steps into ramps, which a lag imitates only in part.  The rate is looked
     for on :data:`RATE_LEVELS` shares of OP's largest step (``u``: OP through
-    the dead time), each with every lag of ``t_axis`` up to ``tau``, and kept where the SSE
-    drops past :data:`STOP_CHI2` and it limits at least :data:`STOP_SAMPLES`
-    steps; else (0, ``tau``).  ``sse``: the chain's SSE without it.
+    the dead time), each with every lag of ``t_axis`` up to ``tau``, and kept
+    where it limits at least :data:`STOP_SAMPLES` steps and the SSE drop is
+    :func:`significant`; else (0, ``tau``).  ``sse``: the chain's SSE without it.
     """
-    steps = np.abs(np.diff(u[idx]))
+    # Steps within each run: the limiter rests at each run's start, across no gap.
+    steps = np.concatenate([np.abs(np.diff(u[a:b])) for a, b in runs])
     top = float(np.max(steps)) if len(steps) else 0.0
     if top <= 0.0:
         return 0.0, tau
@@ -249,10 +256,40 @@ def _rate(u: np.ndarray, mv: np.ndarray, idx: np.ndarray, runs, t_axis, tau: flo
             if there < best[0]:
                 best = (there, float(r), t)
     there, rate, t = best
-    if (rate > 0.0 and there > 0.0 and int(np.sum(steps > rate)) >= STOP_SAMPLES
-            and len(idx) * math.log(sse / there) > STOP_CHI2):
+    if rate <= 0.0 or int(np.sum(steps > rate)) < STOP_SAMPLES:
+        return 0.0, tau
+    y = lagged(limited(u, runs, rate), t, runs)
+    offset, gain, _ = calibrated(y, mv, idx)
+    if significant(sse, there, mv[idx] - offset - gain * y[idx]):
         return rate, t
     return 0.0, tau
+
+
+def significant(sse: float, there: float, residual: np.ndarray) -> bool:
+    """
+    Return whether a stage that lowers the SSE from ``sse`` to ``there`` is no noise-fitting.
+
+    It must remove :data:`MIN_STAGE_DROP` of the SSE, and pass the
+    likelihood ratio of one more parameter against :data:`STOP_CHI2`,
+    counted on the effective number of samples of ``residual`` (the richer
+    chain's): residuals that follow each other (a slow misfit, as a sticking
+    valve leaves) carry fewer independent samples than they number, and a
+    stage that only bends such a misfit must pass on those.
+    """
+    if there <= 0.0:
+        return sse > 0.0
+    if there > (1.0 - MIN_STAGE_DROP) * sse:
+        # A stage that removes a small part of the misfit is not what the misfit is: a
+        # stop or a rate limit bending the rests and jumps a sticking valve leaves.
+        return False
+    n = len(residual)
+    if n < 3:
+        return False
+    r = residual - residual.mean()
+    den = float(r @ r)
+    rho = float(r[:-1] @ r[1:]) / den if den > 0.0 else 0.0
+    rho = min(max(rho, 0.0), 0.999)
+    return n * (1.0 - rho) / (1.0 + rho) * math.log(sse / there) > STOP_CHI2
 
 
 Calibration = tuple[float, float, float]
@@ -268,8 +305,8 @@ def _stops(y: np.ndarray, mv: np.ndarray, idx: np.ndarray,
     chain's position ``y`` (before the calibration, which is solved again at
     each level: a stop left out pulls the gain down) between its 85th and
     100th percentile (15th and 0th), on :data:`STOP_LEVELS` levels, and kept
-    where it lowers the SSE significantly (:data:`STOP_CHI2`) and holds at
-    least :data:`STOP_SAMPLES` samples.  One end only, the more significant:
+    where it holds at least :data:`STOP_SAMPLES` samples and its SSE drop is
+    :func:`significant`.  One end only, the more significant:
     stops at both ends of a narrow travel are a limit cycle's reversals, where
     a sticking valve rests, not two limits.  ``fit``: (offset, gain, SSE)
     without a stop.  The stop is returned in MV's units, None where none fits.
@@ -282,20 +319,26 @@ def _stops(y: np.ndarray, mv: np.ndarray, idx: np.ndarray,
         if not b > a:
             continue
         levels = np.linspace(a, b, STOP_LEVELS)
-        at = float(min(levels, key=lambda x: calibrated(clip(y, x), mv, near)[2]))
+        y_near, n_idx = y[near], np.arange(len(near))
+        at = float(min(levels,
+                       key=lambda x: calibrated(clip(y_near, x), mv[near], n_idx)[2]))
         held = int(np.sum(y[idx] > at) if side else np.sum(y[idx] < at))
-        there = calibrated(clip(y, at), mv, idx)
-        # One more parameter: kept where the likelihood ratio says it is no noise-fitting.
-        if held >= STOP_SAMPLES and there[2] > 0.0:
-            ratio = len(idx) * math.log(fit[2] / there[2])
-            if ratio > STOP_CHI2 and (best is None or ratio > best[0]):
+        if held < STOP_SAMPLES:
+            continue
+        stopped = clip(y, at)
+        there = calibrated(stopped, mv, idx)
+        residual = mv[idx] - there[0] - there[1] * stopped[idx]
+        if significant(fit[2], there[2], residual):
+            ratio = math.inf if there[2] <= 0.0 else fit[2] / there[2]
+            if best is None or ratio > best[0]:
                 best = (ratio, side, at, there)
     if best is None:
         return None, None, fit
     _, side, at, fit = best
     offset, gain, _ = fit
     stop = offset + gain * at
-    return (None, stop, fit) if side else (stop, None, fit)
+    # A reversed reading (a negative gain) holds MV at its other end.
+    return (None, stop, fit) if (side == 1) == (gain >= 0.0) else (stop, None, fit)
 
 
 def follows_op(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,

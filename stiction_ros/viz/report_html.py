@@ -86,7 +86,7 @@ def _verdict(report: dict) -> list:
                'that fits MV to within 1.5 times its own noise variance but removes less '
                'than that share of the MSE (the noise is most of it) is cannot tell too. '
                'A claim must also beat the best valve without friction (a dead time, a rate '
-               'limit, a lag, travel stops and a calibration within gain 0.8-1.25 and 10 % at '
+               'limit, a lag, a travel stop and a calibration within gain 0.8-1.25 and 10 % at '
                'mid-span, fitted to MV): '
                'stick-slip, given such a calibration too, must remove that share of its MSE, '
                'else the answer is no stiction where that valve fits MV to within 1.5 times '
