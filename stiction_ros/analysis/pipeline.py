@@ -23,7 +23,7 @@ from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, 
 from stiction_ros.analysis.measures.still import set_point_test
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.stick_slip_behind import fit_behind
-from stiction_ros.analysis.verdict import combine, explains, from_fits, MIN_IMPROVEMENT, \
+from stiction_ros.analysis.verdict import behind_bar, combine, explains, from_fits, \
     NOISE_FIT, plausible, refuse_still
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
     indices, still_reading
@@ -144,9 +144,8 @@ def fit_models(record, options, progress=None):
                 and from_fits([f.to_json() for f in fits]).detected is not True):
             # Where that valve leaves more than noise, friction may hide behind its timing.
             best = min(fits, key=lambda f: f.mse)
-            beat = min((1.0 - MIN_IMPROVEMENT) * chain['mse'], best.mse,
-                       best.extra.get('calibrated_mse', best.mse))
-            behind = fit_behind(op, mv, segs, ts, chain, best.model, beat)
+            behind = fit_behind(op, mv, segs, ts, chain, best.model,
+                                min(behind_bar(best.to_json())))
             if behind is not None:
                 best.extra['behind'] = behind
     return fits, predictions

@@ -125,22 +125,32 @@ def from_fits(fits: list[dict]) -> FitVerdict:
     told = _plain(fits)
     best = min(fits, key=lambda f: f['mse'])
     behind, chain = best.get('behind'), best.get('frictionless')
-    if (told.detected is not True and behind and chain and shows_behind(behind, chain)
-            and behind['mse'] < _stick_slip_mse(best)):
-        # ... and fits MV better than the plain fit it overrules: play read on time
-        # that fits better is play, whatever a slip behind a dead time makes of it.
+    if told.detected is not True and behind and chain and shows_behind(behind, best):
         return _read_behind(behind, chain)
     return told
 
 
-def shows_behind(behind: dict, chain: dict) -> bool:
-    """Return whether stick-slip behind the reading's timing beats the valve without friction."""
+def behind_bar(best: dict) -> tuple[float, float]:
+    """
+    Return the MSEs a refit behind the reading's timing must reach and beat.
+
+    At most half of the frictionless valve's (``best['frictionless']``), and
+    under the plain fit's own (calibrated where that helps): play read on
+    time that fits better is play, whatever a slip behind a dead time makes
+    of it.  ``best``: the plain fit of least MSE, as the report writes it.
+    """
+    return (1.0 - MIN_IMPROVEMENT) * best['frictionless']['mse'], _stick_slip_mse(best)
+
+
+def shows_behind(behind: dict, best: dict) -> bool:
+    """Return whether stick-slip behind the reading's timing shows friction (``from_fits``)."""
     if not behind.get('S_interval') or not behind.get('J_interval'):
         # Not computed where the refit fit too poorly to claim anything.
         return False
+    reach, under = behind_bar(best)
     s_lo, j_lo = behind['S_interval'][0], behind['J_interval'][0]
     return bool(s_lo >= MIN_S and j_lo >= MIN_J and behind['plausible']
-                and behind['mse'] <= (1.0 - MIN_IMPROVEMENT) * chain['mse'])
+                and behind['mse'] <= reach and behind['mse'] < under)
 
 
 def _read_behind(behind: dict, chain: dict) -> FitVerdict:

@@ -172,31 +172,24 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
         return _at_rate(rate)(d, tau)
 
     here, d, tau = min((sse(d, t), d, t) for d in d_axis for t in t_axis)
-    here, d, tau = _compass(sse, here, d, tau, d_max, tau_max)
+    # A dead time and a lag trade off along a valley, which steps that only shrink
+    # would stop short in: a compass search from the grid's best.
+    here, (d, tau) = _compass(lambda p: sse(*p), here, (d, tau), (0.5, max(0.3, 0.5 * tau)),
+                              (d_max, tau_max), (STEP_END, STEP_END), MAX_MOVES)
     rate, tau = _rate(shift(op_s, d, search), mv_s, idx, runs, t_axis, tau, here)
     if rate > 0.0:
         # The ramps read as a longer dead time and a shorter lag before the rate was
         # known, and the SSE is steep in the rate: the three are searched again together,
-        # shorter dead times on a grid first.
+        # shorter dead times on a grid first (the rate by its logarithm).
         grid = [(_at_rate(r)(x, t), x, t, r)
                 for r in rate * np.array([0.7, 0.85, 1.0, 1.15, 1.3])
                 for x in np.arange(max(d - 4.0, 0.0), d + 1e-9, 0.5) for t in t_axis]
-        _, d, tau, rate = min(grid + [(sse(d, tau), d, tau, rate)])
-        step = [0.5, max(0.3, 0.5 * tau), 0.1]
-        x, here = (d, tau, math.log(rate)), sse(d, tau)
-        for _ in range(RATE_MOVES):
-            moves = [m for m in np.ndindex(3, 3, 3) if m != (1, 1, 1)]
-            trials = [(min(max(x[0] + (a - 1) * step[0], 0.0), d_max),
-                       min(max(x[1] + (b - 1) * step[1], 0.0), tau_max),
-                       x[2] + (c - 1) * step[2]) for a, b, c in moves]
-            there, y = min((_at_rate(math.exp(t[2]))(t[0], t[1]), t) for t in trials)
-            if there < here:
-                here, x = there, y
-            elif max(step[0], step[1]) < STEP_END and step[2] < 0.005:
-                break
-            else:
-                step = [v / 2 for v in step]
-        d, tau, rate = x[0], x[1], math.exp(x[2])
+        here, d, tau, rate = min(grid + [(sse(d, tau), d, tau, rate)])
+        _, (d, tau, log_rate) = _compass(
+            lambda p: _at_rate(math.exp(p[2]))(p[0], p[1]), here, (d, tau, math.log(rate)),
+            (0.5, max(0.3, 0.5 * tau), 0.1), (d_max, tau_max, math.inf),
+            (STEP_END, STEP_END, 0.005), RATE_MOVES)
+        rate = math.exp(log_rate)
     idx = indices(segments)
     full = carried_runs(segments, op)
     u = shift(op, d, segments)
@@ -209,24 +202,31 @@ def fit_without_friction(op: np.ndarray, mv: np.ndarray, segments,
             'stop_low': low, 'stop_high': high}
 
 
-def _compass(sse: Callable[[float, float], float], here: float, d: float, tau: float,
-             d_max: float, tau_max: float) -> tuple[float, float, float]:
-    """Return (SSE, d, tau) of a compass search on ``sse`` from (``d``, ``tau``)."""
-    step_d, step_t = 0.5, max(0.3, 0.5 * tau)
-    for _ in range(MAX_MOVES):
-        # A compass search from the grid's best: a dead time and a lag trade off along a
-        # valley, which steps that only shrink would stop short in.
-        trials = [(min(max(d + a * step_d, 0.0), d_max),
-                   min(max(tau + b * step_t, 0.0), tau_max))
-                  for a in (-1, 0, 1) for b in (-1, 0, 1) if a or b]
-        there, x, t = min((sse(x, t), x, t) for x, t in trials)
+def _compass(f: Callable[[tuple], float], here: float, x: tuple, step: tuple, upper: tuple,
+             end: tuple, moves: int) -> tuple[float, tuple]:
+    """
+    Return (value, point) of a compass search for the least ``f`` from ``x`` (``f(x)`` = ``here``).
+
+    Every neighbour a step away along any mix of the axes is tried (a
+    diagonal follows a valley); the steps halve where none is better, until
+    each is under its ``end`` or after ``moves`` moves.  The first two axes
+    are held within 0 and their ``upper`` bound; a third is free.
+    """
+    for _ in range(moves):
+        trials = []
+        for m in np.ndindex(*(3,) * len(x)):
+            if any(k != 1 for k in m):
+                p = tuple(v + (k - 1) * h for v, k, h in zip(x, m, step))
+                trials.append(tuple(min(max(v, 0.0), hi) if i < 2 else v
+                                    for i, (v, hi) in enumerate(zip(p, upper))))
+        there, y = min((f(p), p) for p in trials)
         if there < here:
-            here, d, tau = there, x, t
-        elif step_d < STEP_END and step_t < STEP_END:
+            here, x = there, y
+        elif all(h < e for h, e in zip(step, end)):
             break
         else:
-            step_d, step_t = step_d / 2, step_t / 2
-    return here, d, tau
+            step = tuple(h / 2 for h in step)
+    return here, x
 
 
 def _rate(u: np.ndarray, mv: np.ndarray, idx: np.ndarray, runs, t_axis, tau: float,
@@ -313,15 +313,14 @@ def _stops(y: np.ndarray, mv: np.ndarray, idx: np.ndarray,
     """
     # The levels are chosen on at most MAX_SEARCH samples, as the chain's stages are.
     near = idx[:MAX_SEARCH]
+    y_near, mv_near, n_idx = y[near], mv[near], np.arange(len(near))
     best: tuple[float, int, float, Calibration] | None = None
     for side, clip, qs in ((1, np.minimum, (0.85, 1.0)), (0, np.maximum, (0.0, 0.15))):
-        a, b = (float(v) for v in np.quantile(y[near], qs))
+        a, b = (float(v) for v in np.quantile(y_near, qs))
         if not b > a:
             continue
         levels = np.linspace(a, b, STOP_LEVELS)
-        y_near, n_idx = y[near], np.arange(len(near))
-        at = float(min(levels,
-                       key=lambda x: calibrated(clip(y_near, x), mv[near], n_idx)[2]))
+        at = float(min(levels, key=lambda x: calibrated(clip(y_near, x), mv_near, n_idx)[2]))
         held = int(np.sum(y[idx] > at) if side else np.sum(y[idx] < at))
         if held < STOP_SAMPLES:
             continue
