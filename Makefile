@@ -57,7 +57,7 @@ accuracy: venv
 
 # The headline verdict with a measured valve position (the fits', not the detector's) on
 # loops hiding stiction, play or a frictionless instrument effect, beside the rule it
-# replaced (docs/MV_VERDICT.md; about 1-2 min on 2 cores: 76 s measured 2026-12-07).
+# replaced (docs/MV_VERDICT.md; about 2 min on 2 cores: 120 s measured 2026-12-07).
 mv-verdict: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.mv_verdict --markdown docs/MV_VERDICT.md \
 	  --json docs/mv_verdict.json

@@ -11,12 +11,12 @@ import subprocess
 import sys
 
 from data_paths import plant_loops_dir
+from fit_reference import reference_output
 import numpy as np
 import pytest
 
 from stiction_ros.analysis.detection import probability_text
 from stiction_ros.analysis.detection.detect import BAND
-from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop, write_csv
 from stiction_ros.sim.loop_config import load_loop
@@ -80,7 +80,7 @@ def test_given_S_and_J_report_the_mse_of_equation_2_8(tmp_path):
                   '--json', tmp_path / 'r.json')
     assert res.returncode == 0, res.stderr
     (fit,) = json.loads((tmp_path / 'r.json').read_text())['fits']
-    mv_hat = create('choudhury', S=5.0, J=2.0).simulate(data['op'], y0=data['mv'][0])
+    mv_hat = reference_output('choudhury', data['op'], data['mv'], 5.0, 2.0)
     assert fit['source'] == 'given' and (fit['S'], fit['J']) == (5.0, 2.0)
     # the CSV holds about 9 significant digits, hence the tolerance
     assert fit['mse'] == pytest.approx(np.mean((data['mv'] - mv_hat) ** 2), rel=1e-6)

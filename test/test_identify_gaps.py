@@ -10,6 +10,7 @@ it; a gap in OP too restarts the model from the state that fits best
 (``stiction_ros.analysis.fit_core``).
 """
 
+from fit_reference import first_rest, reference_output
 import numpy as np
 import pytest
 
@@ -21,7 +22,6 @@ from stiction_ros.analysis.record import assemble
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.kernels import kano_effects as kk
 from stiction_ros.kernels.sse import kano_output, restart_position, RESTART_SAMPLES
-from stiction_ros.models import create
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop
 from stiction_ros.sim.loop_config import load_loop
@@ -110,23 +110,26 @@ def test_the_prediction_is_what_the_fit_scored_after_a_gap_in_op(loop):
     assert np.isclose(sse, float(r @ r), rtol=1e-12)
 
 
-def test_a_record_without_gaps_fits_to_the_bit_as_the_models_run_it(loop):
-    # The restarts are for gaps: a record without one starts the valve where the
-    # models' own simulate does, and its S, J and MSE are those of the plain search.
+def test_a_record_without_gaps_fits_as_the_models_run_it(loop):
+    # The restarts are for gaps: a record without one starts the valve at rest where
+    # its first rest fits best, as the models' own simulate runs from there, and its
+    # S, J and MSE are those of the plain search.
     rec = record(loop)
     assert rec.valve_segments() == [(0, len(loop['op']))]
     op, mv = rec.signals['op'], rec.signals['mv']
     for fit in fit_models(rec, Options(model='both'))[0]:
         plain = identify(op, mv, fit.model)
         assert (fit.S, fit.J, fit.mse) == (plain.S, plain.J, plain.mse)
-        pos = create(fit.model, S=fit.S, J=fit.J).simulate(op, y0=mv[0])
-        sse = 0.0
-        for e in pos - mv:  # in the kernel's order, so to the bit
-            sse += e * e
-        assert fit.mse == sse / len(op)
-        assert np.array_equal(ValveProblem(fit.model, op, mv).output(fit.S, fit.J), pos)
-    assert np.array_equal(kano_output(op, mv[0], 3.47, 1.23, 0.0),
-                          ValveProblem('kano', op, mv).output(3.47, 1.23))
+        pos = reference_output(fit.model, op, mv, fit.S, fit.J)
+        assert fit.mse == pytest.approx(float(np.mean((pos - mv) ** 2)), rel=1e-12)
+        out = ValveProblem(fit.model, op, mv).output(fit.S, fit.J)
+        assert np.allclose(out, pos, rtol=0.0, atol=1e-12)
+        k = first_rest(fit.model, op, fit.S, fit.J)
+        # after the first move the start is forgotten: to the bit
+        assert np.array_equal(out[k:], pos[k:]) and 0 < k < len(op)
+    k = first_rest('kano', op, 3.47, 1.23)
+    assert np.array_equal(kano_output(op, mv[0], 3.47, 1.23, 0.0)[k:],
+                          ValveProblem('kano', op, mv).output(3.47, 1.23)[k:])
 
 
 def test_carried_runs_join_segments_only_across_known_input():

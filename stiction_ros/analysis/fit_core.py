@@ -33,10 +33,19 @@ is its whole history, and OP is all that drives it:
 The old restart, at rest with the band centred on the first OP, put the band
 up to (S + J) / 2 off: in a limit cycle whose OP swings about S the model then
 never broke away after a gap, and 32 blank samples of 600 took a fit from S
-3.47, J 1.23 to S 2.53, J 0.  The record's first segment keeps the models'
-own start (``simulate``: at rest at the first measured position under the
-first input), so records without gaps fit as they always did.
-``carried_runs`` gives the stretches a model runs through.
+3.47, J 1.23 to S 2.53, J 0.
+
+The record's first segment starts the models' own way (``simulate``: at
+rest, the band centred on the first input), at the position that fits its
+samples before the first move best: their mean, profiled out like a
+restart's state (``kernels.sse.first_rest``).  After a move a model's
+position no longer depends on where it started, so only that first rest
+needs it.  Started at the first measured sample alone, a model carried that
+sample's noise through the whole first rest, often hundreds of samples of a
+loop waiting for its first set-point step, and the fit bought its way out
+with a smaller band: at 2 % MV noise sticky valves (S 2.43, J 0.61) came out
+as play (S 1.99, J 0).  ``carried_runs`` gives the stretches a model runs
+through.
 """
 
 import numpy as np

@@ -13,8 +13,11 @@ Only the samples of the valid segments are scored, but the valve runs on
 between them wherever its input is known (:func:`input_known`): a gap in MV
 alone costs its own samples and nothing else.  Where OP is unknown, the next
 segment starts from the best of four states at its first measured position
-(:func:`restart`; ``stiction_ros.analysis.fit_core`` says why).
-:func:`valve_output` writes the position these kernels score.
+(:func:`restart`; ``stiction_ros.analysis.fit_core`` says why).  The
+record's valve starts at rest at the mean of the samples of its first
+segment before its first move (:func:`first_rest`), the start that fits
+them best, not at the first sample alone.  :func:`valve_output` writes the
+position these kernels score.
 """
 
 import numpy as np
@@ -141,6 +144,54 @@ def first_state(kernel_id: int, u0: float, y0: float, st: Floats) -> None:
         st[0], st[1], st[2], st[3], st[4], st[5], st[6] = u0, u0, 0.0, u0, 1.0, 0.0, y0
 
 
+# Samples of the first rest between checks of its error against the caller's limit.
+REST_CHECK = 64
+
+
+@njit(cache=True)
+def first_rest(kernel_id: int, u: Floats, y: Floats, i0: int, i1: int, S: float, J: float,
+               f: float, limit: float, st: Floats) -> tuple[int, float, float]:
+    """
+    Run the record's valve on ``[i0, i1)`` until it first moves; return where, and its rest.
+
+    Until its first move a model holds its start, and after it its position
+    no longer depends on where it started: so the start that fits best is the
+    mean of the samples before that move.  Return (first sample not yet scored,
+    that mean, the rest's SSE about it); ``st`` receives the state there, the
+    valve at rest at the mean or just moved.  Scoring stops once the SSE
+    passes ``limit`` (then only a lower bound).  A pass of its own, so that
+    the scoring loops run as they did without it.
+    """
+    fd = 0.5 * (S - J)
+    c = y[i0]
+    first_state(kernel_id, u[i0], c, st)
+    # Sums of deviations from the first sample: exact where MV holds still.
+    m, t1, t2, pos = 0, 0.0, 0.0, c
+    k = i0
+    while k < i1:
+        pos = advance(kernel_id, st, u[k], S, J, f, fd)
+        # Entry 5 of both models' states is the direction, 0 until the first move.
+        if st[5] != 0.0:
+            break
+        e = y[k] - c
+        m += 1
+        t1 += e
+        t2 += e * e
+        k += 1
+        if m % REST_CHECK == 0 and t2 - t1 * t1 / m > limit:
+            return k, c + t1 / m, t2 - t1 * t1 / m
+    mean = c + t1 / m if m else c
+    sse = max(t2 - t1 * t1 / m, 0.0) if m else 0.0
+    if k < i1:
+        # The sample it moved on, scored here: its position no longer depends on the start.
+        e = pos - y[k]
+        sse += e * e
+        k += 1
+    else:
+        st[6] = mean
+    return k, mean, sse
+
+
 @njit(cache=True)
 def restart_state(kernel_id: int, c: int, u0: float, y0: float, st: Floats) -> None:
     """
@@ -261,9 +312,12 @@ def kano_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: float
         i0 = starts[s]
         k0 = i0
         if s == 0:
-            uf = u[i0]
-            u1 = _clip(uf)
-            u2, us, resting, d, yk = u1, u1, True, 0.0, y[i0]
+            st = np.empty(STATE)
+            k0, _, sse = first_rest(0, u, y, i0, stops[0], S, J, a, limit, st)
+            if sse > limit:
+                return sse
+            uf, u1, u2, us, resting, d, yk = (st[0], st[1], st[2], st[3], st[4] > 0.5, st[5],
+                                              st[6])
         elif input_known(u, stops[s - 1], i0):
             # OP known through the gap: the valve ran on; its samples are not scored.
             for k in range(stops[s - 1], i0):
@@ -298,8 +352,12 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
         i0 = starts[s]
         k0 = i0
         if s == 0:
-            x = u[i0]
-            xprev, sprev, xss, stuck, d, pos = x, 0.0, x, True, 0.0, y[i0]
+            st = np.empty(STATE)
+            k0, _, sse = first_rest(1, u, y, i0, stops[0], S, J, lam, limit, st)
+            if sse > limit:
+                return sse
+            x, xprev, sprev, xss, stuck, d, pos = (st[0], st[1], st[2], st[3], st[4] > 0.5,
+                                                   st[5], st[6])
         elif input_known(u, stops[s - 1], i0):
             # OP known through the gap: the valve ran on; its samples are not scored.
             for k in range(stops[s - 1], i0):
@@ -423,7 +481,8 @@ def valve_output(kernel_id: int, u: Floats, y: Floats, starts: Ints, stops: Ints
         i0 = starts[s]
         k0 = i0
         if s == 0:
-            first_state(kernel_id, u[i0], y[i0], st)
+            y0 = first_rest(kernel_id, u, y, i0, stops[0], S, J, f, np.inf, st)[1]
+            first_state(kernel_id, u[i0], y0, st)
         elif input_known(u, stops[s - 1], i0):
             k0 = stops[s - 1]
         else:
