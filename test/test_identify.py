@@ -99,6 +99,32 @@ def test_the_first_samples_noise_does_not_move_the_fit(model):
     assert out[0] == pytest.approx(np.mean(d['mv'][:rest]))
 
 
+@pytest.mark.parametrize('model', ['kano', 'choudhury'])
+def test_a_gap_in_mv_within_the_first_rest_leaves_its_start_to_every_sample(model):
+    # The valve rests through an MV dropout (OP known), so the start is the mean of
+    # all the rest's scored samples, not of those before the gap alone: else the
+    # first sample's noise is back.
+    d = noisy_loop(model, 3.0, 1.2, seed=12, duration=3000, mv_std=2.0)
+    segs = [(0, 2), (3, len(d['op']))]
+    fits = []
+    for spike in (0.0, 5.0, -5.0):
+        mv = d['mv'].copy()
+        mv[0] += spike
+        fits.append(identify(d['op'], mv, model, segments=segs))
+    assert len({(f.S, f.J) for f in fits}) == 1
+    assert abs(fits[0].S - 3.0) <= 0.1 and abs(fits[0].J - 1.2) <= 0.1, fits[0]
+    gapped = ValveProblem(model, d['op'], d['mv'], segs)
+    full = ValveProblem(model, d['op'], d['mv'])
+    s, j = np.linspace(2.0, 4.0, 5), np.linspace(0.0, 2.0, 5)
+    # fewer samples, each rest scored at its own best start: never more
+    assert np.all(gapped.grid(s, j) <= full.grid(s, j))
+    out = gapped.output(3.0, 1.2)
+    scored = ~np.isnan(out)
+    assert scored.sum() == len(d['op']) - 1
+    assert np.isclose(np.sum((out[scored] - d['mv'][scored]) ** 2),
+                      gapped.grid([3.0], [1.2])[0, 0], rtol=1e-12)
+
+
 def test_compiled_kernel_matches_the_reference_model_with_an_air_chamber():
     rng = np.random.default_rng(3)
     op = np.clip(50 + np.cumsum(rng.normal(0, 0.5, 3000)), -3, 103)

@@ -21,7 +21,8 @@ from stiction_ros.analysis.pipeline import fit_models, Options
 from stiction_ros.analysis.record import assemble
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.kernels import kano_effects as kk
-from stiction_ros.kernels.sse import kano_output, restart_position, RESTART_SAMPLES
+from stiction_ros.kernels.sse import kano_output
+from stiction_ros.kernels.valve_starts import restart_position, RESTART_SAMPLES
 from stiction_ros.resources import config_file
 from stiction_ros.sim.closed_loop import simulate_loop
 from stiction_ros.sim.loop_config import load_loop
@@ -71,8 +72,9 @@ def test_a_gap_of_32_samples_leaves_S_and_J_and_the_error_as_without_it(
 
 
 def test_the_fits_run_through_a_gap_in_mv_alone_as_through_no_gap(loop):
-    # With OP known, a gap changes only which samples are scored: scoring the
-    # gap-free record on the same samples gives the same sums.
+    # With OP known, a gap after the valve's first move changes only which samples
+    # are scored: scoring the gap-free record on the same samples gives the same sums
+    # (within the first rest it also moves the rest's best start, test_identify).
     rec = record(loop, ('mv',))
     segs = rec.valve_segments()
     op, mv = np.asarray(loop['op'], dtype=np.float64), np.asarray(loop['mv'], dtype=np.float64)

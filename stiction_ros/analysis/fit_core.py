@@ -17,7 +17,7 @@ is its whole history, and OP is all that drives it:
   pauses, so a gap costs its own samples and nothing else;
 * where OP is unknown, nothing carries the state, and the next segment
   restarts from the state that fits it best of the four a valve can be in
-  at a measured position y0 (``kernels.sse.restart``): stuck at y0 (y0 the
+  at a measured position y0 (``kernels.valve_starts.restart``): stuck at y0 (y0 the
   median of its first samples, or its first sample, should it slip among
   them), or moving up or down.  A stuck valve needs no direction: Kano's
   next breakaway comes at OP = y0 +- (S + J) / 2 whichever way it last moved
@@ -36,9 +36,10 @@ never broke away after a gap, and 32 blank samples of 600 took a fit from S
 3.47, J 1.23 to S 2.53, J 0.
 
 The record's first segment starts the models' own way (``simulate``: at
-rest, the band centred on the first input), at the position that fits its
-samples before the first move best: their mean, profiled out like a
-restart's state (``kernels.sse.first_rest``).  After a move a model's
+rest, the band centred on the first input), at the position that fits the
+scored samples before the first move best (across gaps where OP is known):
+their mean, profiled out like a restart's state
+(``kernels.valve_starts.first_rest``).  After a move a model's
 position no longer depends on where it started, so only that first rest
 needs it.  Started at the first measured sample alone, a model carried that
 sample's noise through the whole first rest, often hundreds of samples of a

@@ -34,7 +34,9 @@ import numpy as np
 
 from stiction_ros._jit import njit
 from stiction_ros.kernels.arrays import Floats, Ints
-from stiction_ros.kernels.sse import input_known, insert_best, prune, RESTARTS
+from stiction_ros.kernels.sse import insert_best
+from stiction_ros.kernels.valve_starts import prune, RESTARTS
+from stiction_ros.kernels.valve_steps import input_known
 
 (A_IN, B_OUT, ASYM, DWELL, DWELL_TAU, POS, POS_REF, DRIFT, DRIFT_MID, DRIFT_SPAN,
  STRIBECK, CREEP) = range(12)
@@ -169,7 +171,7 @@ def _at_rest(u0: float, k: float, y0: float) -> Floats:
 
 @njit(cache=True)
 def _restart_state(c: int, u0: float, k: float, y0: float) -> Floats:
-    # Restart c after a gap in OP, before sample k (sse.restart_state): 0 and 1 stuck
+    # Restart c after a gap in OP, before sample k (valve_starts.restart_state): 0 and 1 stuck
     # at y0 with its stick point there, 2 and 3 moving up and down; the input lag at u0.
     st = _at_rest(u0, k, y0)
     if c < 2:
@@ -192,7 +194,7 @@ _REST_ONLY[[ST_US, ST_SINCE, ST_YREST]] = True
 @njit(cache=True)
 def _restart(u: Floats, y: Floats, i0: int, i1: int, y0: float, S: float, J: float, p: Floats,
              bound: float) -> tuple[float, int, int, Floats]:
-    # sse.restart with this model: (SSE of the best restart, first sample not yet
+    # valve_starts.restart with this model: (SSE of the best restart, first sample not yet
     # scored, its number, its state), the restarts side by side until they merge.
     none = np.empty(0)
     cand = np.empty((RESTARTS, STATE_SIZE))
@@ -221,7 +223,7 @@ def kano_effects_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, y0s: Float
     The first segment starts at rest at position ``y0s[0]``.  Where OP is known
     since the last segment the valve runs on through the gap, whose samples are
     not scored; after a gap in OP the best of the restarts of
-    ``sse.restart_state`` at ``y0s[s]`` is scored (``fit_core`` says why).
+    ``valve_starts.restart_state`` at ``y0s[s]`` is scored (``fit_core`` says why).
     """
     sse = 0.0
     none = np.empty(0)

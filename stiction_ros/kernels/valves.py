@@ -18,7 +18,7 @@ from stiction_ros._jit import njit
 from stiction_ros.kernels.arrays import Floats
 # Kano's step, the breakaway rule and the clamp are identify's compiled ones.
 from stiction_ros.kernels.characteristics import apply_characteristic
-from stiction_ros.kernels.sse import _breakaway, _clip, _kano_step
+from stiction_ros.kernels.valve_steps import _breakaway, _clip, _kano_step
 
 
 _characteristic = njit(cache=True)(apply_characteristic)
