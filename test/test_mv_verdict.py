@@ -2,6 +2,8 @@
 
 import json
 
+import numpy as np
+from stiction_ros.analysis.caution import step_while_moving
 from stiction_ros.analysis.verdict import chain_words, combine, from_fits
 from stiction_ros.app.analyze import analyze_file, AnalyzeOptions
 from stiction_ros.app.report_text import size_text
@@ -174,3 +176,38 @@ def test_the_page_is_rewritten_from_its_json_without_scoring(tmp_path, capsys):
     assert main(['--render-only', '--json', str(data), '--markdown', str(page)]) == 0
     assert ('| `a` | no stiction | 1 | 0 / 1 / 0 | 0 / 1 / 0 | 1 / 0 / 0 | 1 / 0 / 0 | - |'
             in page.read_text())
+
+
+def test_a_slip_jump_within_ops_move_in_one_sample_is_not_resolved():
+    # Play taken up between two samples shows at the next as a jump of up to OP's move
+    # in that sample, so a jump must clear that move too (the development seeds' backlash
+    # read at 5 s: J 0.13-0.15 %, OP moving 0.16 % a sample while the valve moved).
+    coarse = {**STICK_SLIP, 'J': 0.14, 'J_interval': [0.13, 0.15], 'op_step': 0.16}
+    told = from_fits([coarse])
+    assert told.detected is None and told.code == 'slip_unresolved'
+    assert "OP's move in one sample" in told.reason and '0.16 %' in told.reason
+    # The same jump at a finer sampling is a slip; a fit without the step keeps MIN_J.
+    assert from_fits([{**coarse, 'op_step': 0.05}]).detected is True
+    assert from_fits([{k: v for k, v in coarse.items() if k != 'op_step'}]).detected is True
+
+
+def test_ops_move_while_the_valve_moves_is_read_where_the_fit_moves():
+    op = np.concatenate([np.full(50, 40.0), 40.0 + 0.3 * np.arange(1, 51)])
+    op[:50] += 0.01 * np.sin(np.arange(50))   # small moves while the valve rests
+    held = np.concatenate([np.full(50, 40.0), op[50:] - 1.0])
+    assert abs(step_while_moving(op, held, [(0, 100)]) - 0.3) < 1e-9
+    assert step_while_moving(op, np.full(100, 40.0), [(0, 100)]) == 0.0
+    # only the scored segments count
+    assert abs(step_while_moving(op, held, [(0, 40), (60, 100)]) - 0.3) < 1e-9
+
+
+def test_the_fits_carry_ops_move_while_the_valve_moves(tmp_path):
+    # The backlash of the instrument cases read every 5 s: the fits say how far OP moves
+    # in a sample while the fitted valve moves, which is what a slip jump must clear.
+    record, _ = instrument_case('backlash', 600004, sample_time=5.0, n_samples=1500)
+    path = tmp_path / 'loop.csv'
+    write_csv(path, record, columns=('t', 'sp', 'pv', 'op', 'mv'))
+    report = analyze_file(AnalyzeOptions(input=str(path))).report
+    d_op = np.abs(np.diff(record['op']))
+    for fit in report['fits']:
+        assert 0.0 < fit['op_step'] <= float(np.max(d_op))

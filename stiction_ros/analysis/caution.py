@@ -3,7 +3,8 @@ Why S and J fitted to MV may not be trusted at the record's sampling.
 
 The cautions the analyzer attaches to a size read from MV (``size_caution``):
 a loop that cycles in fewer samples than a cycle's shape needs has the
-valve's turning points between samples.
+valve's turning points between samples.  And the smallest slip jump the
+sampling resolves (:func:`step_while_moving`).
 """
 
 import numpy as np
@@ -63,3 +64,22 @@ def sampling_caution(held: dict, osc, sample_time: float, sticks: bool,
                 'for it')
     return (f"{seen}; the valve's turning points fall between samples, so a small band may "
             'have been missed')
+
+
+def step_while_moving(op: np.ndarray, position: np.ndarray, segments) -> float:
+    """
+    Return OP's median move in one sample while a fitted valve moves (0 where it never does).
+
+    A valve breaks away somewhere between two samples, so play taken up
+    between them shows at the next sample as a jump of up to OP's move in
+    that sample: a slip jump no larger than this is not resolved.
+    ``position``: the fit's MV (``pipeline.predict``); ``segments``: the
+    scored ``(start, stop)`` ranges.
+    """
+    moves = []
+    for a, b in segments:
+        d_op = np.abs(np.diff(op[a:b]))
+        moved = np.diff(position[a:b]) != 0.0
+        moves.append(d_op[moved & np.isfinite(d_op)])
+    steps = np.concatenate(moves) if moves else np.empty(0)
+    return float(np.median(steps)) if steps.size else 0.0

@@ -12,7 +12,8 @@ import re
 
 import numpy as np
 
-from stiction_ros.analysis.caution import sampling_caution, valve_sampling_caution
+from stiction_ros.analysis.caution import sampling_caution, step_while_moving, \
+    valve_sampling_caution
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, probability_text
 from stiction_ros.analysis.detection.detect import answer_of, reason_of
 from stiction_ros.analysis.detection.resolve import robust_noise
@@ -121,6 +122,7 @@ def fit_models(record, options, progress=None):
         fit.extra['improvement'] = 1.0 - fit.mse / ideal if ideal > 0 else 0.0
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)
+        fit.extra['op_step'] = step_while_moving(op, predictions[model], segs)
     told = from_fits([f.to_json() for f in fits]) if fits and options.S is None else None
     if told is not None and (told.detected or (
             told.code in (None, 'slip_unresolved') and 0 < NOISE_FIT * noise < ideal)):

@@ -5,7 +5,9 @@ With a measured valve position the answer comes from the fits: the valve
 sticks when the identified S is clearly above zero (its 95 % range starts
 above ``MIN_S``), the stiction model explains the MV much better than an
 ideal valve does, and the fit needs a slip jump (J's 95 % range starts at
-``MIN_J`` or above).  A band without a jump is the chapter's pure deadband
+``MIN_J`` or above, and at OP's move in one sample while the valve moves:
+play taken up between two samples shows as a jump that size, ``j_floor``).
+A band without a jump is the chapter's pure deadband
 (J = 0): play, from a worn linkage or a positioner's deadband as much as
 from friction, which moves the valve smoothly once taken up.  It is answered
 ``no stiction`` with the play's size, as ``--explain`` and the learned
@@ -149,7 +151,7 @@ def shows_behind(behind: dict, best: dict) -> bool:
         return False
     reach, under = behind_bar(best)
     s_lo, j_lo = behind['S_interval'][0], behind['J_interval'][0]
-    return bool(s_lo >= MIN_S and j_lo >= MIN_J and behind['plausible']
+    return bool(s_lo >= MIN_S and j_lo >= j_floor(best) and behind['plausible']
                 and behind['mse'] <= reach and behind['mse'] < under)
 
 
@@ -177,9 +179,10 @@ def _plain(fits: list[dict]) -> FitVerdict:
     lo = interval[0] if interval else best['S']
     jumps = best.get('J_interval')
     j_lo, j_hi = (jumps[0], jumps[1]) if jumps else (best['J'], best['J'])
+    floor = j_floor(best)
     score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
     banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
-    detected = banded and j_lo >= MIN_J
+    detected = banded and j_lo >= floor
     ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
     j_ranged = f' (95 % range {jumps[0]:.2f}-{jumps[1]:.2f})' if jumps else ''
     why = (f'{best["model"]} fits the measured MV with S = {best["S"]:.2f} %{ranged}, '
@@ -187,7 +190,7 @@ def _plain(fits: list[dict]) -> FitVerdict:
     if improvement is not None:
         why += f', {100 * improvement:.0f} % below the MSE of an ideal valve'
     noise = best.get('mv_noise_var')
-    if (not banded and lo >= MIN_S and j_lo >= MIN_J and improvement is not None
+    if (not banded and lo >= MIN_S and j_lo >= floor and improvement is not None
             and noise and best['mse'] <= NOISE_FIT * noise):
         # Stick-slip that fits down to the reading's noise, where the noise is most of
         # what an ideal valve misses too: the share it removes says nothing then.
@@ -205,8 +208,8 @@ def _plain(fits: list[dict]) -> FitVerdict:
         return _without_friction(best, chain, noise, why)
     if not banded and chain and not explains(chain, noise):
         # No stiction is a claim too: that a valve without friction explains MV.
-        return _unexplained(best, chain, noise, lo >= MIN_S and j_lo >= MIN_J, why)
-    if (not banded and chain and lo >= MIN_S and j_lo >= MIN_J
+        return _unexplained(best, chain, noise, lo >= MIN_S and j_lo >= floor, why)
+    if (not banded and chain and lo >= MIN_S and j_lo >= floor
             and _stick_slip_mse(best) < chain['mse']):
         # ... and at least as well as stick-slip with a clear band and jump does.
         return _alike(best, chain, why)
@@ -229,10 +232,26 @@ def _plain(fits: list[dict]) -> FitVerdict:
             'smoothly (a deadband or backlash: a worn linkage, a positioner deadband, or '
             f'friction whose static and kinetic forces are equal), not stick-slip; {why}'
         ), play=best['S'])
+    sampled = ('' if floor <= MIN_J else
+               ", OP's move in one sample while the valve moves: play taken up between two "
+               'samples shows as a jump that size')
     return FitVerdict(None, 0.0, best['S'], (
         f'a band of {best["S"]:.2f} % whose slip jump cannot be told from none: J = '
-        f'{best["J"]:.2f} %{j_ranged} reaches below {MIN_J:g} %, so stick-slip and play '
-        f'without it (a deadband or backlash) fit alike; {why}'), code='slip_unresolved')
+        f'{best["J"]:.2f} %{j_ranged} reaches below {floor:.3g} %{sampled}, so stick-slip '
+        f'and play without it (a deadband or backlash) fit alike; {why}'),
+        code='slip_unresolved')
+
+
+def j_floor(fit: dict) -> float:
+    """
+    Return the smallest slip jump a fit resolves (%): ``MIN_J``, or more at coarse sampling.
+
+    A valve breaks away between two samples, so play taken up between them
+    shows at the next sample as a jump of up to OP's move in that sample:
+    ``fit['op_step']``, OP's median move in one sample while the fitted
+    valve moves (``caution.step_while_moving``), where the pipeline gave it.
+    """
+    return max(MIN_J, fit.get('op_step') or 0.0)
 
 
 def plausible(chain: dict) -> bool:
