@@ -35,7 +35,6 @@ def kano_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: float
     """Return the SSE of Kano's model (air-chamber pole ``a``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
     sse = 0.0
-    uf, u1, u2, us, resting, d, yk = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
     if starts.shape[0] == 0:
         return sse
     st = np.empty(STATE)
@@ -81,7 +80,6 @@ def choudhury_sse(u: Floats, y: Floats, starts: Ints, stops: Ints, S: float, J: 
     """Return the SSE of Choudhury's model (EWMA weight ``lam``) against ``y``, or > ``limit``."""
     fd = 0.5 * (S - J)
     sse = 0.0
-    x, xprev, sprev, xss, stuck, d, pos = 0.0, 0.0, 0.0, 0.0, True, 0.0, 0.0
     if starts.shape[0] == 0:
         return sse
     st = np.empty(STATE)
