@@ -33,6 +33,8 @@ def test_why_not_names_balanced_evidence_or_the_check_failed():
         'frictionless valve fits'
     assert _why_not({'cannot_tell': 'unexplained_mv', 'reason': 'neither stick-slip ...'}) == \
         'MV unexplained'
+    assert _why_not({'cannot_tell': 'few_slips',
+                     'reason': 'the fitted valve starts to move 0 times ...'}) == 'too few slips'
 
 
 def test_the_tally_breaks_cannot_tell_down_and_survives_rows_without_a_reason(capsys):

@@ -170,7 +170,7 @@ def test_the_signature_vote_reads_the_record_the_verdict_read(k):
     # Before, the vote read PV as exported and so paired each OP with another scan's PV.
     from stiction_ros.analysis.pipeline import analyze, Options
     from stiction_ros.analysis.signatures.all import compute_signatures
-    from stiction_ros.analysis.verdict import from_signatures
+    from stiction_ros.analysis.signature_vote import from_signatures
     sc, t = _loop(48)                  # a Choudhury valve, S 1.8 % J 1.9 %, in a limit cycle
     n, m = len(t.op), abs(k)
     skewed = shift_pv(t, k)

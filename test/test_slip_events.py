@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from stiction_ros.analysis.signature_vote import from_signatures
 from stiction_ros.analysis.signatures.all import compute_signatures
 from stiction_ros.analysis.signatures.slip_events import slip_events
-from stiction_ros.analysis.verdict import from_signatures
 from stiction_ros.sim.disturbed_loops import disturbed_loop
 
 

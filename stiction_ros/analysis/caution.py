@@ -83,3 +83,22 @@ def step_while_moving(op: np.ndarray, position: np.ndarray, segments) -> float:
         moves.append(d_op[moved & np.isfinite(d_op)])
     steps = np.concatenate(moves) if moves else np.empty(0)
     return float(np.median(steps)) if steps.size else 0.0
+
+
+def slips(position: np.ndarray, segments) -> int:
+    """
+    Return how many runs of movement a fitted valve makes in the scored segments.
+
+    A fit whose valve never leaves its first position (or does so once or
+    twice) fits MV as a constant, whatever its S and J: its band and slip
+    jump are not identified, however narrow their ranges.  Each segment is
+    read on its own: a move under way at its start counts, and a move that
+    runs on through a gap counts in each segment.  A step to or from a
+    non-finite position is no move.
+    """
+    count = 0
+    for a, b in segments:
+        step = np.diff(position[a:b])
+        moving = np.isfinite(step) & (step != 0.0)
+        count += int(np.sum(moving[1:] & ~moving[:-1])) + int(moving[:1].sum())
+    return count

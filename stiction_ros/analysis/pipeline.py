@@ -12,7 +12,7 @@ import re
 
 import numpy as np
 
-from stiction_ros.analysis.caution import sampling_caution, step_while_moving, \
+from stiction_ros.analysis.caution import sampling_caution, slips, step_while_moving, \
     valve_sampling_caution
 from stiction_ros.analysis.detection import detect, Detection, Judgeable, probability_text
 from stiction_ros.analysis.detection.detect import answer_of, reason_of
@@ -123,12 +123,14 @@ def fit_models(record, options, progress=None):
         fits.append(fit)
         predictions[model] = predict(model, fit, op, mv, segs, ts)
         fit.extra['op_step'] = step_while_moving(op, predictions[model], segs)
+        fit.extra['slips'] = slips(predictions[model], segs)
     told = from_fits([f.to_json() for f in fits]) if fits and options.S is None else None
-    if told is not None and (told.detected or (
+    if told is not None and (told.detected or told.code == 'few_slips' or (
             told.code in (None, 'slip_unresolved') and 0 < NOISE_FIT * noise < ideal)):
-        # A claim of friction must beat the best valve without it, which real readings
-        # call for first (dead time, lag, calibration); so must a claim of none where
-        # an ideal valve leaves more than MV's noise, and play or an unresolved slip,
+        # A claim of friction (one the fitted valve moves too seldom to make too) must beat
+        # the best valve without it, which real readings call for first (dead time, lag,
+        # calibration); so must a claim of none where an ideal valve leaves more than
+        # MV's noise, and play or an unresolved slip,
         # which a dead time in the reading imitates.  Not where the user gave S and J:
         # that model is theirs to weigh.
         # Stick-slip gets the chain's calibration too (an offset and gain on its MV).

@@ -25,6 +25,7 @@ itself (:func:`.verdict.from_fits`).
 
 import numpy as np
 
+from stiction_ros.analysis.caution import slips
 from stiction_ros.analysis.identify import confidence_box, identify, ValveProblem
 from stiction_ros.analysis.verdict import plausible
 from stiction_ros.analysis.without_friction import calibrated, indices, shift
@@ -60,7 +61,8 @@ def fit_behind(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
         ``J_interval`` (% of the valve's own travel, holding the dead time
         and calibration fixed; None where the refit does not beat ``beat``),
         ``mse`` (MV's units, after the calibration), ``offset`` and ``gain``
-        (MV = offset + gain x position), ``dead_time_s`` and ``plausible``
+        (MV = offset + gain x position), ``dead_time_s``, ``slips``
+        (:func:`.caution.slips` of the refit's valve) and ``plausible``
         (whether that calibration is one a working reading has); None where
         the chain's gain leaves no position to read back (zero or not
         finite), or no valve can be identified behind the dead time (OP flat
@@ -90,5 +92,5 @@ def fit_behind(op: np.ndarray, mv: np.ndarray, segments, sample_time: float,
         s_range, j_range = (list(r) for r in confidence_box(problem, fit.S, fit.J, fit.mse))
     return {'model': model, 'S': fit.S, 'J': fit.J, 'S_interval': s_range,
             'J_interval': j_range, 'mse': sse / len(idx), 'offset': offset, 'gain': g,
-            'dead_time_s': chain['dead_time_s'],
+            'dead_time_s': chain['dead_time_s'], 'slips': slips(out, segments),
             'plausible': plausible({'offset': offset, 'gain': g})}

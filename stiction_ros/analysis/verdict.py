@@ -12,11 +12,13 @@ A band without a jump is the chapter's pure deadband
 from friction, which moves the valve smoothly once taken up.  It is answered
 ``no stiction`` with the play's size, as ``--explain`` and the learned
 detector answer it (issue 18 counts deadband and backlash as look-alikes), and
-``cannot tell`` where J's range straddles ``MIN_J``.  A fit with a clear band
-and jump that removes under ``MIN_IMPROVEMENT`` of an ideal valve's MSE only
-because MV's noise is most of it (the fit's MSE within ``NOISE_FIT`` times
-the noise variance) is ``cannot tell`` too: a 50 % reduction cannot be had
-from a reading whose noise is over half of what an ideal valve misses.
+``cannot tell`` where J's range straddles ``MIN_J``.  No model removes a
+reading's noise, so a fit may instead remove ``MIN_IMPROVEMENT`` of what an
+ideal valve leaves above MV's noise (:mod:`.noise_share`); one that removes
+neither, only because the noise is most of that MSE (the fit's MSE within
+``NOISE_FIT`` times the noise variance), is ``cannot tell``.  So is a fit
+whose valve starts to move fewer than ``MIN_SLIPS`` times: a constant that
+beats an ideal valve identifies no band or jump.
 
 A real reading differs from OP first through its timing and instruments, so
 a claim must also beat the best valve without friction (dead time, lag,
@@ -25,23 +27,20 @@ or off in offset and gain can also hide a sticking valve from the plain fits
 (a dead time makes stick-slip look like play): where they show no stiction,
 stick-slip refitted behind that valve's dead time and calibration answers
 ``stiction`` when it clears the same floors, removes ``MIN_IMPROVEMENT`` of
-that valve's MSE and fits better than the plain fit, play included.
+that valve's MSE and fits better than the plain fit, play included.  The
+plain fits' claim and an answer of none that rests on that valve count what
+lies above MV's noise as well: where the two tie above it, ``cannot tell``;
+where stick-slip itself fits within the noise estimate's error of the noise,
+a valve without friction that fits as well is the answer, as before.
 
-With neither a measured position nor the learned detector, the OP/PV
-signatures vote: each decided signature counts 1 for stiction and 0 against,
-weighted by ``WEIGHTS``; an undetermined one does not vote.  ``score`` is the
-weighted mean of the votes and stiction is reported when it reaches
-``THRESHOLD``.  In a loop without a regular oscillation only the signatures
-of ``WITHOUT_OSCILLATION`` vote: they look for single stick-slip events,
-where the others need a limit cycle (Yamashita's index needs none either, but
-it also fires on noisy healthy loops, see docs/ACCURACY.md).  The weights and
-the threshold are the ones whose cross-validated accuracy on the real plant
-loops is in ``docs/ACCURACY.md``.
+Without them the OP/PV signatures vote (:mod:`.signature_vote`).
 """
 
 from dataclasses import dataclass
 
 from stiction_ros.analysis.measures.still import SetPointTest, Still
+from stiction_ros.analysis.noise_share import share_above_noise
+from stiction_ros.analysis.signature_vote import from_signatures
 from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
 MIN_S = 0.2
@@ -50,14 +49,12 @@ MIN_IMPROVEMENT = 0.5
 MIN_J = 0.05
 # A fit whose MSE is within this factor of MV's own noise variance leaves only noise.
 NOISE_FIT = 1.5
+# A band and jump need repeated slips to be told from a one-off move: one cycle is two.
+MIN_SLIPS = 3
 # The calibration a position reading can have (gain; error at mid-span, % of span) and
 # still be read as working: a frictionless valve that needs more explains nothing.
 CALIBRATION_GAIN = (0.8, 1.25)
 CALIBRATION_OFFSET = 10.0
-WEIGHTS = {'horch': 1.0, 'he_curve_fit': 1.0, 'hos_pv_op': 1.0, 'yamashita': 1.0,
-           'slip_events': 1.0}
-THRESHOLD = 0.5
-WITHOUT_OSCILLATION = ('slip_events',)
 
 
 @dataclass(frozen=True)
@@ -81,7 +78,8 @@ class FitVerdict:
         The S of a band without a slip jump, else None.
     code : str or None
         Why the answer is ``cannot tell`` (``noisy_mv``,
-        ``slip_unresolved``, ``frictionless_fits``, ``unexplained_mv``), else None.
+        ``slip_unresolved``, ``few_slips``, ``frictionless_fits``, ``unexplained_mv``),
+        else None.
     without_friction : str or None
         The stages of the valve without friction that explains MV where the
         answer rests on it (``no stiction``), else None.
@@ -152,6 +150,7 @@ def shows_behind(behind: dict, best: dict) -> bool:
     reach, under = behind_bar(best)
     s_lo, j_lo = behind['S_interval'][0], behind['J_interval'][0]
     return bool(s_lo >= MIN_S and j_lo >= j_floor(best) and behind['plausible']
+                and behind.get('slips', MIN_SLIPS) >= MIN_SLIPS
                 and behind['mse'] <= reach and behind['mse'] < under)
 
 
@@ -181,7 +180,11 @@ def _plain(fits: list[dict]) -> FitVerdict:
     j_lo, j_hi = (jumps[0], jumps[1]) if jumps else (best['J'], best['J'])
     floor = j_floor(best)
     score = 0.0 if improvement is None else max(0.0, min(1.0, improvement))
-    banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT))
+    noise = best.get('mv_noise_var')
+    above = share_above_noise(best['mse'], best.get('ideal_valve_mse'), noise,
+                              best.get('samples'))
+    banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT
+                                   or (above is not None and above >= MIN_IMPROVEMENT)))
     detected = banded and j_lo >= floor
     ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
     j_ranged = f' (95 % range {jumps[0]:.2f}-{jumps[1]:.2f})' if jumps else ''
@@ -189,7 +192,8 @@ def _plain(fits: list[dict]) -> FitVerdict:
            f'J = {best["J"]:.2f} %, MSE {best["mse"]:.4g}')
     if improvement is not None:
         why += f', {100 * improvement:.0f} % below the MSE of an ideal valve'
-    noise = best.get('mv_noise_var')
+        if above is not None and improvement < MIN_IMPROVEMENT:
+            why += f' ({100 * above:.0f} % of what it leaves above the noise)'
     if (not banded and lo >= MIN_S and j_lo >= floor and improvement is not None
             and noise and best['mse'] <= NOISE_FIT * noise):
         # Stick-slip that fits down to the reading's noise, where the noise is most of
@@ -203,8 +207,7 @@ def _plain(fits: list[dict]) -> FitVerdict:
             'lag, dead time or calibration the plain models leave out; --explain tests '
             f'friction against a valve without it, held out; {why}'), code='noisy_mv')
     chain = best.get('frictionless')
-    if (detected and chain and plausible(chain)
-            and _stick_slip_mse(best) > (1.0 - MIN_IMPROVEMENT) * chain['mse']):
+    if detected and chain and plausible(chain) and not _beats(best, chain, noise):
         return _without_friction(best, chain, noise, why)
     if not banded and chain and not explains(chain, noise):
         # No stiction is a claim too: that a valve without friction explains MV.
@@ -213,15 +216,24 @@ def _plain(fits: list[dict]) -> FitVerdict:
             and _stick_slip_mse(best) < chain['mse']):
         # ... and at least as well as stick-slip with a clear band and jump does.
         return _alike(best, chain, why)
-    if not banded and chain:
+    if chain and (not banded or (not detected and explains(chain, noise)
+                                 and chain['mse'] <= _stick_slip_mse(best))):
+        # Play, or a slip jump too small to tell, fitted worse than a valve without
+        # friction fits MV down to its noise: that valve is the answer.
         stages = chain_words(chain)
         beside = ('at least as well as stick-slip' if chain['mse'] <= _stick_slip_mse(best)
                   else f'stick-slip, without a clear band and slip jump, leaving '
                        f'{_k_words(best)}')
-        return FitVerdict(False, score, best['S'], (
+        return FitVerdict(False, 0.0 if banded else score, best['S'], (
             f'{why}; a valve without friction ({stages}) explains MV down to its noise '
             f'(MSE {chain["mse"]:.4g}, against {noise:.4g} from its sample-to-sample '
             f'changes; {beside})'), without_friction=stages)
+    if detected and best.get('slips', MIN_SLIPS) < MIN_SLIPS:
+        return FitVerdict(None, 0.0, best['S'], (
+            f"the fitted valve starts to move {best['slips']} times in the record: a "
+            'constant (or a move or two) fits MV better than an ideal valve, for a reading '
+            'off in offset, clipped at a stop or drifting, and its band and slip jump are '
+            f'not identified, however narrow their ranges; {why}'), code='few_slips')
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
@@ -315,6 +327,14 @@ def _unexplained(best: dict, chain: dict, noise: float | None, banded_jump: bool
         code='unexplained_mv')
 
 
+def _beats(best: dict, chain: dict, noise: float | None) -> bool:
+    # Stick-slip removes MIN_IMPROVEMENT of the frictionless valve's MSE, or of its part
+    # above MV's noise.
+    K, F = _stick_slip_mse(best), chain['mse']
+    above = share_above_noise(K, F, noise, best.get('samples'))
+    return K <= (1.0 - MIN_IMPROVEMENT) * F or (above is not None and above >= MIN_IMPROVEMENT)
+
+
 def _stick_slip_mse(fit: dict) -> float:
     """Return the fit's MSE, or less where a calibration (offset, gain) on its MV helps."""
     return min(fit['mse'], fit.get('calibrated_mse', fit['mse']))
@@ -329,8 +349,11 @@ def _k_words(fit: dict) -> str:
 def _without_friction(best: dict, chain: dict, noise: float | None, why: str) -> FitVerdict:
     # Stick-slip beat an ideal valve, but not a valve with the timing and calibration
     # a real reading has: friction is not shown until it beats that one too.
-    stages, F = chain_words(chain), chain['mse']
-    if explains(chain, noise) and F <= _stick_slip_mse(best):
+    stages, F, K = chain_words(chain), chain['mse'], _stick_slip_mse(best)
+    # Over a noisy reading that valve must also leave at most half of what stick-slip
+    # leaves above the noise: the two tie within it (a sticking valve behind a dead time).
+    above = share_above_noise(F, K, noise, best.get('samples'))
+    if explains(chain, noise) and F <= K and (above is None or above >= MIN_IMPROVEMENT):
         return FitVerdict(False, 0.0, best['S'], (
             f'a valve without friction ({stages}) fits MV down to its noise (MSE {F:.4g}, '
             f'against {noise:.4g} from its sample-to-sample changes), at least as well as '
@@ -345,8 +368,9 @@ def _alike(best: dict, chain: dict, why: str, claimed: bool = False) -> FitVerdi
     if claimed:
         # Stick-slip beat an ideal valve by half, but not this valve.
         what = (f'stick-slip ({words}) removes under {100 * MIN_IMPROVEMENT:.0f} % of the '
-                f'MSE of a valve without friction ({chain_words(chain)}, MSE {F:.4g}), and '
-                'that valve does not fit MV better and down to its noise')
+                f'MSE of a valve without friction ({chain_words(chain)}, MSE {F:.4g}) or of '
+                'its part above the noise, and that valve does not fit MV down to its noise '
+                'and leave at most half of what stick-slip leaves above it')
     else:
         # No band by the ideal valve's test, yet stick-slip beats this valve.
         what = (f'stick-slip with a clear band and slip jump ({words}) fits MV better than '
@@ -356,28 +380,6 @@ def _alike(best: dict, chain: dict, why: str, claimed: bool = False) -> FitVerdi
         f'{what}: neither friction nor its absence is shown over timing and calibration; '
         f'--explain fits friction with them and tests both on held-out data; {why}'),
         code='frictionless_fits')
-
-
-def from_signatures(osc, sigs, weights=None, threshold=None):
-    """Return (detected, score, reason) from the OP/PV signatures."""
-    weights = WEIGHTS if weights is None else weights
-    threshold = THRESHOLD if threshold is None else threshold
-    votes = {n: s.stiction for n, s in sigs.items() if s.stiction is not None}
-    said = ', '.join(f'{n} {"yes" if v else "no"}' for n, v in votes.items())
-    steady = osc is not None and not osc.oscillating
-    if steady:
-        votes = {n: v for n, v in votes.items() if n in WITHOUT_OSCILLATION}
-    total = sum(weights.get(n, 0.0) for n in votes)
-    if total == 0.0:
-        if steady:
-            return False, 0.0, f'no regular oscillation and no slip event; signatures: {said}'
-        return None, 0.0, 'no signature could decide'
-    score = sum(weights.get(n, 0.0) for n, v in votes.items() if v) / total
-    if steady:
-        return (score >= threshold, score,
-                f'no regular oscillation; voting without one: '
-                f'{", ".join(votes)} (score {score:.2f}); all signatures: {said}')
-    return score >= threshold, score, f'signatures: {said} (score {score:.2f})'
 
 
 ANSWER = {True: 'stiction', False: 'no stiction', None: 'cannot tell'}

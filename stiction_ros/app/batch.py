@@ -37,7 +37,7 @@ WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
 # With MV, the fits' own reasons to answer cannot tell, in a tally's words.
 FITS_CANNOT_TELL = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise',
                     'frictionless_fits': 'frictionless valve fits',
-                    'unexplained_mv': 'MV unexplained'}
+                    'unexplained_mv': 'MV unexplained', 'few_slips': 'too few slips'}
 
 
 def _is_bag(path):

@@ -20,9 +20,10 @@ import sys
 from stiction_ros.cli.text import figure, run_seeded, run_stamp, save_study, seeded_parser
 
 # Fresh: the instrument cases' development seeds are 600000 and up, the --explain
-# benchmark scores 700000 and up.  760000-760923 scored earlier versions of the rule (the
-# page says how); the rule scored here was fixed before 761000 and up were read.
-FIRST_SEED = 761_200
+# benchmark scores 700000 and up.  760000-761223 scored earlier versions of the rule (the
+# page says how); the rule scored here (the share above MV's noise, MIN_SLIPS) was fixed
+# on the development seeds before 761300 and up were read.
+FIRST_SEED = 761_300
 
 
 def parser() -> argparse.ArgumentParser:
@@ -200,10 +201,33 @@ def markdown(study: dict) -> str:
               'moves (0.16 %): a valve breaks away between two samples, so play taken up '
               'between them shows as a jump that size. A slip jump must now clear that '
               'move too (the development seeds: 2 wrong, none of 120 healthy valves called '
-              'stiction, the same 18 of 36 sticky valves found). That rule is scored here, '
-              'on seeds no version had read; the rule before it, run on the same seeds only '
-              'to compare, gave 5 wrong (1/240: a backlash read at 0.5 s, its jump 0.06-0.07 '
-              '%; 4/72), 65 cannot tell and found 35 sticky valves.',
+              'stiction, the same 18 of 36 sticky valves found). That rule scored '
+              '761200-761223: 4 wrong (0/240, 4/72, all at 2 % MV noise), 62 cannot tell, 33 '
+              'of 72 sticky valves found (the rule before it, on the same seeds: 5 wrong, 1/240 '
+              'a backlash whose jump was 0.06-0.07 %). At 2 % MV noise most of what an ideal '
+              'valve misses is the noise, which no model removes: a fit that explains every '
+              'slip removes a fifth of it (`noisy_mv`). A fit may now instead remove half of '
+              'what an ideal valve leaves above the noise, where that excess is larger than '
+              "the noise estimate's error (`stiction_ros/analysis/noise_share.py`); the claim "
+              'against the valve without friction counts the same way, and no stiction from '
+              'that valve asks it to leave at most half of what stick-slip leaves above the '
+              'noise. The development seeds then showed a healthy travel stop called stiction '
+              'by a fit of S 13 %, J 12 % whose valve never moved (a constant that beat an '
+              'ideal valve): a fit whose valve starts to move fewer than 3 times now claims '
+              'nothing (`few_slips`), and play or an unresolved jump that a valve without '
+              'friction fits down to the noise, and as well, is no stiction. Chosen on the '
+              'development seeds: 2 wrong, none of 120 healthy valves called stiction, 27 of '
+              '36 sticky valves found against 18. That rule is scored here, on seeds no '
+              'version had read; the rule before it, run on the same seeds only to compare, '
+              'gave the same 8 wrong (0/240, 8/72), 59 cannot tell and found 28 sticky '
+              "valves. A review then found three gaps, mended before the page's run and "
+              'answering every record here as before: a fit below the noise estimate (too '
+              'high then) made a share above 1; a refit behind the timing was not held to '
+              '3 slips; play given way to that valve kept its score. On seeds 761400-761423, '
+              'fresh, the rule as mended gave 5 wrong (0/240, 5/72, all at 2 % MV noise), 40 '
+              'cannot tell, 51 of 72 sticky valves found, balanced accuracy 0.854 (0.955 on '
+              'the 87 % decided); on 761200-761223 (read before by the rule before it alone) '
+              '3 wrong (0/240), 48 cannot tell, 53 found.',
               '', "The `cannot tell` codes are the README's (`stiction.cannot_tell`); "
               '`stiction-analyze --explain` answers most of them by fitting friction together '
               'with the instrument effects and testing both on held-out data '

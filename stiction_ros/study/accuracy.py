@@ -14,7 +14,7 @@ from itertools import product
 
 import numpy as np
 
-from stiction_ros.analysis.verdict import from_signatures, THRESHOLD, WEIGHTS
+from stiction_ros.analysis.signature_vote import from_signatures, THRESHOLD, WEIGHTS
 
 SIGNATURES = tuple(WEIGHTS)
 THRESHOLDS = (0.25, 0.34, 0.5, 0.67, 0.75, 1.0)

@@ -17,8 +17,8 @@ from stiction_ros import __version__
 from stiction_ros.analysis.detection.detect import BAND as DETECTOR_BAND, probability_text
 from stiction_ros.analysis.judged import judged_text
 from stiction_ros.analysis.mismatch.sentences import explained_size
-from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_J, MIN_S, \
-    THRESHOLD as VOTE_THRESHOLD
+from stiction_ros.analysis.signature_vote import THRESHOLD as VOTE_THRESHOLD
+from stiction_ros.analysis.verdict import MIN_IMPROVEMENT, MIN_J, MIN_S, MIN_SLIPS
 from stiction_ros.viz.html_parts import clean, e, figure, INPUT_META, MSE_UNIT, num, pct, \
     PV_UNITS, rule, span, STYLE, table
 from stiction_ros.viz.report_explain import explain_parts
@@ -79,21 +79,29 @@ def _verdict(report: dict) -> list:
         strength = f'score {num(st.get("score"), 3)} (0 = none, 1 = certain)'
         how = (f'With the valve position (MV) the fits decide: stiction when the 95 % range '
                f'of the best model&rsquo;s S starts at or above {num(MIN_S)} % and its MSE is '
-               f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP), and '
+               f'at least {pct(MIN_IMPROVEMENT)} below that of an ideal valve (MV = OP), or '
+               'removes that share of what the ideal valve leaves above MV&rsquo;s noise '
+               '(where that excess is larger than the noise estimate&rsquo;s error), and '
                f'the 95 % range of its slip jump J starts at or above {num(MIN_J)} % and at '
                'OP&rsquo;s move in one sample while the valve moves (play taken up between '
                'two samples shows as a jump that size). Such a '
                'band without a jump is play (a deadband or backlash): no stiction where J '
                'stays under that, cannot tell where its range straddles it. Stick-slip '
                'that fits MV to within 1.5 times its own noise variance but removes less '
-               'than that share of the MSE (the noise is most of it) is cannot tell too. '
+               'than that share of the MSE (the noise is most of it) is cannot tell too, '
+               f'and so is a fit whose valve starts to move fewer than {MIN_SLIPS} times (a '
+               'constant identifies no band or jump). '
                'A claim must also beat the best valve without friction (a dead time, a rate '
                'limit, a lag, a travel stop and a calibration within gain 0.8-1.25 and 10 % at '
                'mid-span, fitted to MV): '
-               'stick-slip, given such a calibration too, must remove that share of its MSE, '
-               'else the answer is no stiction where that valve fits MV to within 1.5 times '
-               'its noise variance and at least as well as stick-slip, and cannot tell where '
-               'it does not. Where the fits find no band and an ideal valve leaves more than '
+               'stick-slip, given such a calibration too, must remove that share of its MSE '
+               'or of its part above the noise, else the answer is no stiction where that '
+               'valve fits MV to within 1.5 times its noise variance, at least as well as '
+               'stick-slip and leaving at most half of what stick-slip leaves above the '
+               'noise, and cannot tell where it does not. A band without a clear slip jump '
+               '(play, or a jump too small to tell) is no stiction too where that valve fits '
+               'MV to within 1.5 times its noise variance and at least as well. '
+               'Where the fits find no band and an ideal valve leaves more than '
                '1.5 times the noise variance, no stiction needs that valve to explain MV the '
                'same way, and at least as well as stick-slip with a clear band and jump; else '
                'cannot tell. Where that valve leaves more than the noise and the plain fits '

@@ -25,7 +25,7 @@ from stiction_ros.analysis.detection.interpolated import lines_judgeable
 from stiction_ros.analysis.detection.resolve import cycle_judgeable, judgeable
 from stiction_ros.analysis.detection.stale import drop_held, holds_judgeable
 from stiction_ros.analysis.detection.timing import realign
-from stiction_ros.analysis.verdict import from_signatures
+from stiction_ros.analysis.signature_vote import from_signatures
 
 # Stiction whose footprint on PV is below the noise (ratio) counts as hidden.
 MIN_FOOTPRINT = 1.0
