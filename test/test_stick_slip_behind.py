@@ -110,3 +110,25 @@ def test_the_refit_is_held_to_every_floor():
     assert fit_behind(np.arange(10.0), np.arange(10.0), [(0, 10)], 1.0, zero, 'kano') is None
     flat = fit_behind(np.full(50, 40.0), np.full(50, 40.0), [(0, 50)], 1.0, CHAIN, 'kano')
     assert flat is None
+
+
+def test_no_stiction_resting_on_a_valve_without_friction_must_beat_stick_slip_behind_it():
+    # Development seed 600002: a Kano valve read through a positioner off in offset and
+    # gain, with 2 % noise on MV.  A valve without friction (a lag and that calibration)
+    # fits MV within 1.5 times its noise, so read on time the answer is no stiction;
+    # stick-slip behind that valve's timing removes over half of what it leaves above
+    # the noise.
+    from stiction_ros.study.mv_verdict import read, runs
+    run = next(r for r in runs(12, 600000) if r.case == 'sticky_calibration'
+               and r.seed == 600002)
+    assert run.extra_mv_noise == 2.0
+    row = read(run)
+    assert row['truth'] == 'stiction' and row['on_time'] == 'no stiction'
+    assert row['answer'] == 'stiction'
+    # Over that noise half of the valve's MSE is out of reach; half of its excess is not.
+    chain = {**CHAIN, 'mse': 5.0}
+    noisy = {**PLAY, 'mse': 5.5, 'improvement': 0.2, 'mv_noise_var': 4.0, 'samples': 4000,
+             'frictionless': chain}
+    behind = {**BEHIND, 'mse': 4.4, 'offset': 0.5, 'gain': 1.0, 'slips': 40}
+    assert from_fits([{**noisy, 'behind': behind}]).read_behind
+    assert not from_fits([{**noisy, 'behind': {**behind, 'mse': 4.6}}]).read_behind

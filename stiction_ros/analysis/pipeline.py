@@ -24,8 +24,8 @@ from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, 
 from stiction_ros.analysis.measures.still import set_point_test
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.stick_slip_behind import fit_behind
-from stiction_ros.analysis.verdict import behind_bar, combine, explains, from_fits, \
-    NOISE_FIT, plausible, refuse_still
+from stiction_ros.analysis.verdict import behind_bar, combine, from_fits, NOISE_FIT, \
+    plausible, refuse_still
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
     indices, still_reading
 
@@ -144,9 +144,9 @@ def fit_models(record, options, progress=None):
                 # Held to the calibration the valve without friction is held to.
                 if plausible({'offset': offset, 'gain': gain}):
                     fit.extra['calibrated_mse'] = sse / len(idx)
-        if (not explains(chain, noise)
-                and from_fits([f.to_json() for f in fits]).detected is not True):
-            # Where that valve leaves more than noise, friction may hide behind its timing.
+        if from_fits([f.to_json() for f in fits]).detected is not True:
+            # Friction may hide behind that valve's timing, and a claim of none that rests
+            # on the valve must beat stick-slip read behind the same timing.
             best = min(fits, key=lambda f: f.mse)
             behind = fit_behind(op, mv, segs, ts, chain, best.model,
                                 min(behind_bar(best.to_json())))

@@ -27,7 +27,9 @@ or off in offset and gain can also hide a sticking valve from the plain fits
 (a dead time makes stick-slip look like play): where they show no stiction,
 stick-slip refitted behind that valve's dead time and calibration answers
 ``stiction`` when it clears the same floors, removes ``MIN_IMPROVEMENT`` of
-that valve's MSE and fits better than the plain fit, play included.  The
+that valve's MSE (or of what it leaves above MV's noise) and fits better
+than the plain fit, play included; so a claim of none that rests on that
+valve must beat this refit too.  The
 plain fits' claim and an answer of none that rests on that valve count what
 lies above MV's noise as well: where the two tie above it, ``cannot tell``;
 where stick-slip itself fits within the noise estimate's error of the noise,
@@ -134,12 +136,17 @@ def behind_bar(best: dict) -> tuple[float, float]:
     """
     Return the MSEs a refit behind the reading's timing must reach and beat.
 
-    At most half of the frictionless valve's (``best['frictionless']``), and
-    under the plain fit's own (calibrated where that helps): play read on
-    time that fits better is play, whatever a slip behind a dead time makes
-    of it.  ``best``: the plain fit of least MSE, as the report writes it.
+    At most half of the frictionless valve's (``best['frictionless']``), or
+    of what it leaves above MV's noise (:mod:`.noise_share`), and under the
+    plain fit's own (calibrated where that helps): play read on time that
+    fits better is play, whatever a slip behind a dead time makes of it.
+    ``best``: the plain fit of least MSE, as the report writes it.
     """
-    return (1.0 - MIN_IMPROVEMENT) * best['frictionless']['mse'], _stick_slip_mse(best)
+    F, noise = best['frictionless']['mse'], best.get('mv_noise_var')
+    reach = (1.0 - MIN_IMPROVEMENT) * F
+    if noise and share_above_noise(noise, F, noise, best.get('samples')) is not None:
+        reach = max(reach, F - MIN_IMPROVEMENT * (F - noise))
+    return reach, _stick_slip_mse(best)
 
 
 def shows_behind(behind: dict, best: dict) -> bool:

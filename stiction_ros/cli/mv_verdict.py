@@ -20,10 +20,10 @@ import sys
 from stiction_ros.cli.text import figure, run_seeded, run_stamp, save_study, seeded_parser
 
 # Fresh: the instrument cases' development seeds are 600000 and up, the --explain
-# benchmark scores 700000 and up.  760000-761223 scored earlier versions of the rule (the
-# page says how); the rule scored here (the share above MV's noise, MIN_SLIPS) was fixed
-# on the development seeds before 761300 and up were read.
-FIRST_SEED = 761_300
+# benchmark scores 700000 and up.  760000-761423 scored earlier versions of the rule (the
+# page says how); the rule scored here (no stiction must beat stick-slip read behind the
+# valve without friction) was fixed on the development seeds before 761500 and up were read.
+FIRST_SEED = 761_500
 
 
 def parser() -> argparse.ArgumentParser:
@@ -227,7 +227,19 @@ def markdown(study: dict) -> str:
               'fresh, the rule as mended gave 5 wrong (0/240, 5/72, all at 2 % MV noise), 40 '
               'cannot tell, 51 of 72 sticky valves found, balanced accuracy 0.854 (0.955 on '
               'the 87 % decided); on 761200-761223 (read before by the rule before it alone) '
-              '3 wrong (0/240), 48 cannot tell, 53 found.',
+              '3 wrong (0/240), 48 cannot tell, 53 found. Its wrong answers were sticky '
+              'valves that a valve without friction (a lag or dead time and a calibration) '
+              'fitted within 1.5 times the noise, so no stiction rested on that valve, while '
+              'stick-slip read behind its timing was fitted only where that valve left more '
+              'than the noise, and then had to remove half of its MSE, out of reach over a '
+              'noisy reading. Now no stiction that rests on the valve must beat that refit '
+              'too: it is fitted wherever the plain fits show no stiction, and may remove half '
+              "of the valve's MSE or of what it leaves above the noise (the development "
+              'seeds: 1 wrong, none of 120 healthy valves called stiction, 34 of 36 sticky '
+              'valves found against 27, the same time). That rule is scored here; the rule '
+              'before it, on the same seeds only to compare, gave 6 wrong (1/240, 5/72), 35 '
+              'cannot tell, 54 found, and the same healthy valve called stiction (a backlash '
+              'read at 2 s under 2 % noise).',
               '', "The `cannot tell` codes are the README's (`stiction.cannot_tell`); "
               '`stiction-analyze --explain` answers most of them by fitting friction together '
               'with the instrument effects and testing both on held-out data '
