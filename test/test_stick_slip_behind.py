@@ -130,5 +130,6 @@ def test_no_stiction_resting_on_a_valve_without_friction_must_beat_stick_slip_be
     noisy = {**PLAY, 'mse': 5.5, 'improvement': 0.2, 'mv_noise_var': 4.0, 'samples': 4000,
              'frictionless': chain}
     behind = {**BEHIND, 'mse': 4.4, 'offset': 0.5, 'gain': 1.0, 'slips': 40}
-    assert from_fits([{**noisy, 'behind': behind}]).read_behind
+    told = from_fits([{**noisy, 'behind': behind}])
+    assert told.read_behind and "60 % of what it leaves above MV's noise (4)" in told.reason
     assert not from_fits([{**noisy, 'behind': {**behind, 'mse': 4.6}}]).read_behind

@@ -128,7 +128,7 @@ def from_fits(fits: list[dict]) -> FitVerdict:
     best = min(fits, key=lambda f: f['mse'])
     behind, chain = best.get('behind'), best.get('frictionless')
     if told.detected is not True and behind and chain and shows_behind(behind, best):
-        return _read_behind(behind, chain)
+        return _read_behind(behind, chain, best)
     return told
 
 
@@ -161,9 +161,13 @@ def shows_behind(behind: dict, best: dict) -> bool:
                 and behind['mse'] <= reach and behind['mse'] < under)
 
 
-def _read_behind(behind: dict, chain: dict) -> FitVerdict:
-    F, K = chain['mse'], behind['mse']
+def _read_behind(behind: dict, chain: dict, best: dict) -> FitVerdict:
+    F, K, noise = chain['mse'], behind['mse'], best.get('mv_noise_var')
     share = 1.0 - K / F if F > 0 else 0.0
+    above = share_above_noise(K, F, noise, best.get('samples'))
+    noisy = ('' if above is None or share >= MIN_IMPROVEMENT else
+             f" and {min(100.0, 100.0 * above):.0f} % of what it leaves above MV's noise "
+             f'({noise:.4g})')
     si, ji = behind['S_interval'], behind['J_interval']
     late = (f'dead time {behind["dead_time_s"]:.3g} s, ' if behind['dead_time_s'] > 0.0
             else '')
@@ -174,7 +178,7 @@ def _read_behind(behind: dict, chain: dict) -> FitVerdict:
         f'S = {behind["S"]:.2f} % (95 % range {si[0]:.2f}-{si[1]:.2f}), J = '
         f'{behind["J"]:.2f} % (95 % range {ji[0]:.2f}-{ji[1]:.2f}), MSE {K:.4g}, '
         f'{100 * share:.0f} % below the best valve without friction ({chain_words(chain)}, '
-        f'MSE {F:.4g}): a sticking valve whose slips the plain fits, reading MV as on '
+        f'MSE {F:.4g}){noisy}: a sticking valve whose slips the plain fits, reading MV as on '
         'time and calibrated, could not resolve'), read_behind=stages)
 
 
