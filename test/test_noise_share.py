@@ -83,7 +83,11 @@ def test_a_fit_whose_valve_hardly_moves_claims_no_stiction():
 def test_a_noisy_fit_is_stiction_by_its_share_above_the_noise():
     # 2 % of noise (variance 4): a fifth of the ideal valve's MSE, all that lies above it.
     noisy = fit(mse=4.0, ideal_valve_mse=5.0, improvement=0.2, mv_noise_var=4.0)
-    assert from_fits([noisy]).detected is True
+    told = from_fits([noisy])
+    # The score is the evidence that decided: the share above the noise, not a fifth.
+    assert told.detected is True and told.score == pytest.approx(1.0)
+    assert from_fits([{**noisy, 'mse': 4.4, 'improvement': 0.12}]).score == \
+        pytest.approx(0.6)
     # The noise read as 4.9: the excess is within its error and the share says nothing.
     told = from_fits([{**noisy, 'mv_noise_var': 4.9}])
     assert told.detected is None and told.code == 'noisy_mv'

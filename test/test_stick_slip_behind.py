@@ -132,4 +132,5 @@ def test_no_stiction_resting_on_a_valve_without_friction_must_beat_stick_slip_be
     behind = {**BEHIND, 'mse': 4.4, 'offset': 0.5, 'gain': 1.0, 'slips': 40}
     told = from_fits([{**noisy, 'behind': behind}])
     assert told.read_behind and "60 % of what it leaves above MV's noise (4)" in told.reason
+    assert told.score == pytest.approx(0.6)
     assert not from_fits([{**noisy, 'behind': {**behind, 'mse': 4.6}}]).read_behind

@@ -71,7 +71,9 @@ class FitVerdict:
     score : float
         The share of an ideal valve's MSE the best fit removes (0-1); behind
         the reading's timing, the share of the valve without friction's MSE
-        the refit removes; 0 where the answer rests on no stick-slip.
+        the refit removes; where the share of what that valve leaves above
+        MV's noise decided instead, that share (at most 1); 0 where the
+        answer rests on no stick-slip.
     size : float
         The best fit's S (% of span), the refit's behind the reading's timing.
     reason : str
@@ -172,7 +174,8 @@ def _read_behind(behind: dict, chain: dict, best: dict) -> FitVerdict:
     late = (f'dead time {behind["dead_time_s"]:.3g} s, ' if behind['dead_time_s'] > 0.0
             else '')
     stages = f'{late}MV = {behind["offset"]:.2f} + {behind["gain"]:.3f} x position'
-    return FitVerdict(True, max(0.0, min(1.0, share)), behind['S'], (
+    evidence = share if not noisy else max(share, above or 0.0)
+    return FitVerdict(True, max(0.0, min(1.0, evidence)), behind['S'], (
         f'{behind["model"]} read through the timing and calibration of the position reading '
         f'({stages}) fits MV with '
         f'S = {behind["S"]:.2f} % (95 % range {si[0]:.2f}-{si[1]:.2f}), J = '
@@ -196,6 +199,9 @@ def _plain(fits: list[dict]) -> FitVerdict:
                               best.get('samples'))
     banded = bool(lo >= MIN_S and (improvement is None or improvement >= MIN_IMPROVEMENT
                                    or (above is not None and above >= MIN_IMPROVEMENT)))
+    if banded and improvement is not None and improvement < MIN_IMPROVEMENT:
+        # The share above the noise decided: it is the evidence, not the plain share.
+        score = min(1.0, above or 0.0)
     detected = banded and j_lo >= floor
     ranged = f' (95 % range {interval[0]:.2f}-{interval[1]:.2f})' if interval else ''
     j_ranged = f' (95 % range {jumps[0]:.2f}-{jumps[1]:.2f})' if jumps else ''

@@ -111,7 +111,8 @@ def _verdict(report: dict) -> list:
                'fits MV better than the plain fit (a reading late or off in offset and gain '
                'hides a slip). Sizes the user gave are not weighed against that valve. '
                'The score is the reduction of the MSE (1 - MSE / MSE<sub>ideal</sub>; behind '
-               'the reading&rsquo;s timing, of the valve without friction&rsquo;s), 0 '
+               'the reading&rsquo;s timing, of the valve without friction&rsquo;s; of its part '
+               'above the noise where that share decided), 0 '
                'for play, for cannot tell and where stiction gave way to the valve without '
                'friction.')
     elif st.get('probability') is not None:
