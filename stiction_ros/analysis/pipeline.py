@@ -130,9 +130,8 @@ def fit_models(record, options, progress=None):
         # A claim of friction (one the fitted valve moves too seldom to make too) must beat
         # the best valve without it, which real readings call for first (dead time, lag,
         # calibration); so must a claim of none where an ideal valve leaves more than
-        # MV's noise, and play or an unresolved slip,
-        # which a dead time in the reading imitates.  Not where the user gave S and J:
-        # that model is theirs to weigh.
+        # MV's noise, and play or an unresolved slip, which a dead time in the reading
+        # imitates.  Not where the user gave S and J: that model is theirs to weigh.
         # Stick-slip gets the chain's calibration too (an offset and gain on its MV).
         chain = fit_without_friction(op, mv, segs, ts)
         idx = indices(segs)

@@ -146,6 +146,7 @@ def behind_bar(best: dict) -> tuple[float, float]:
     """
     F, noise = best['frictionless']['mse'], best.get('mv_noise_var')
     reach = (1.0 - MIN_IMPROVEMENT) * F
+    # A fit down to the noise has a share (1) only where F's excess over it is clear.
     if noise and share_above_noise(noise, F, noise, best.get('samples')) is not None:
         reach = max(reach, F - MIN_IMPROVEMENT * (F - noise))
     return reach, _stick_slip_mse(best)
