@@ -80,6 +80,15 @@ def test_a_fit_whose_valve_hardly_moves_claims_no_stiction():
     assert told.detected is None and told.code == 'few_slips'
 
 
+def test_play_whose_valve_hardly_moves_is_no_size_of_play():
+    # A band without a slip jump is play, of a size read from the valve's moves.
+    play = fit(J=0.0, J_interval=[0.0, 0.02])
+    told = from_fits([play])
+    assert told.detected is False and told.play == pytest.approx(4.0)
+    told = from_fits([{**play, 'slips': MIN_SLIPS - 1}])
+    assert told.detected is None and told.code == 'few_slips' and told.play is None
+
+
 def test_a_noisy_fit_is_stiction_by_its_share_above_the_noise():
     # 2 % of noise (variance 4): a fifth of the ideal valve's MSE, all that lies above it.
     noisy = fit(mse=4.0, ideal_valve_mse=5.0, improvement=0.2, mv_noise_var=4.0)

@@ -246,7 +246,8 @@ def _plain(fits: list[dict]) -> FitVerdict:
             f'{why}; a valve without friction ({stages}) explains MV down to its noise '
             f'(MSE {chain["mse"]:.4g}, against {noise:.4g} from its sample-to-sample '
             f'changes; {beside})'), without_friction=stages)
-    if detected and best.get('slips', MIN_SLIPS) < MIN_SLIPS:
+    if banded and best.get('slips', MIN_SLIPS) < MIN_SLIPS:
+        # Play is a band too: a valve that barely moves identifies neither.
         return FitVerdict(None, 0.0, best['S'], (
             f"the fitted valve starts to move {best['slips']} times in the record: a "
             'constant (or a move or two) fits MV better than an ideal valve, for a reading '
