@@ -20,7 +20,11 @@ The uncertainty interval of each parameter is the projection of the joint
 95 % region: the grid pairs whose likelihood-ratio statistic
 ``N ln(MSE / MSE_min)`` (Gaussian errors) stays under the chi-square quantile
 with two degrees of freedom (5.99).  S and J trade off along ridges, so a
-profile along each axis alone would be too narrow.
+profile along each axis alone would be too narrow.  The region is searched in
+a window about the best pair, and need not be one piece: play without a
+slip jump at a smaller S can fit as well as a jump (a reading late by a
+dead time makes a slip look like a smooth move), so play is scored on its
+own and J's range reaches 0 where it lies inside.
 """
 
 from dataclasses import dataclass, field
@@ -237,6 +241,8 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
     two-degree-of-freedom chi-square quantile; the window around the optimum
     doubles while the region touches its edge (at most ``grow`` times), its
     grid never finer than ``resolution`` nor more than ``BOX_POINTS`` a side.
+    Where J's range stays clear of 0, the best play (:func:`best_play`) is
+    scored too, and J's range reaches 0 (S's, play's S) where it lies inside.
     """
     # In MV's own units squared, so that MV given in other units reads the same.
     exact = EXACT_MSE * (float(np.ptp(problem.mv)) or 1.0) ** 2
@@ -278,8 +284,41 @@ def confidence_box(problem, S, J, mse_min, resolution=0.01, half_width=0.25, gro
         # Wider, not cut short: a range that looks clear of a floor must be so.
         reach = np.array([max(S - cut, 0.0), S + cut, max(J - cut, 0.0), J + cut])
         box = np.where(_at_edge(s_ax, j_ax, ii, jj), reach, box)
+    if box[2] > 0.0:
+        # The region need not be one piece: play (J = 0) at an S outside this window can
+        # fit within it, where a dead time or noise lets a smooth move stand in for a slip.
+        play = best_play(problem, sse_bound)
+        if play is not None and play[0] <= sse_bound:
+            box = np.array([min(box[0], play[1]), max(box[1], play[1]), 0.0, box[3]])
     lo_s, hi_s, lo_j, hi_j = (round(float(v), 10) for v in box)
     return (lo_s, hi_s), (lo_j, hi_j)
+
+
+# Play's S is searched on this grid (% of span), then at the fit's resolution about its best.
+PLAY_STEP = 0.1
+
+
+def best_play(problem, limit: float, resolution: float = 0.01) -> tuple[float, float] | None:
+    """
+    Return (SSE, S) of the best play without a slip jump (J = 0), or None where none comes near.
+
+    S runs over OP's travel in the scored samples (at most 100 %).  Pairs are
+    abandoned past twice ``limit``; the fine search runs about the three best
+    coarse ones that came under it.
+    """
+    used = np.concatenate([problem.u[a:b] for a, b in zip(problem.starts, problem.stops)])
+    travel = float(np.ptp(used[np.isfinite(used)])) if np.isfinite(used).any() else 0.0
+    coarse = _axis(0.0, min(travel, 100.0), PLAY_STEP, resolution)
+    scores = problem.grid(coarse, [0.0], 2.0 * limit)[:, 0]
+    near = [float(coarse[i]) for i in np.argsort(scores, kind='stable')[:3]
+            if scores[i] < 2.0 * limit]
+    if not near:
+        return None
+    fine = np.unique(np.concatenate([_axis(s - PLAY_STEP, s + PLAY_STEP, resolution, resolution)
+                                     for s in near]))
+    sse = problem.grid(fine, [0.0], 2.0 * limit)[:, 0]
+    i = int(np.argmin(sse))
+    return float(sse[i]), float(fine[i])
 
 
 def _at_edge(s_ax, j_ax, ii, jj) -> np.ndarray:
