@@ -37,9 +37,14 @@ def test_stick_slip_must_beat_the_best_valve_without_friction_too():
     # A calibration on stick-slip's own MV counts for it: 0.14 is under half of 0.3.
     told = from_fits([{**STICK_SLIP, 'calibrated_mse': 0.14, 'frictionless': rough}])
     assert told.detected is True
-    # A chain that fits only with a reading 30 % off is a fault, not a calibration.
+    # A chain that fits only with a reading 30 % off is a fault, not a calibration: it
+    # explains no stiction away (one imitating friction comes close: 0.3 against 0.2), but
+    # stick-slip must still fit better than it to be claimed.
     broken = {**CHAIN, 'gain': 1.6}
-    assert from_fits([{**STICK_SLIP, 'frictionless': broken}]).detected is True
+    told = from_fits([{**STICK_SLIP, 'frictionless': broken}])
+    assert told.detected is None and told.code == 'reading_fault'
+    assert 'MV = -1.50 + 1.600 x OP' in told.reason
+    assert from_fits([{**STICK_SLIP, 'frictionless': {**broken, 'mse': 0.3}}]).detected is True
     # Far better than any frictionless valve: stiction, scored as before.
     st = combine(None, {}, [{**STICK_SLIP, 'frictionless': {**CHAIN, 'mse': 2.0}}])
     assert st['detected'] is True and st['score'] == 0.8
@@ -84,8 +89,11 @@ def test_no_stiction_needs_a_valve_that_explains_mv():
     assert 'calibrated' not in told.reason and 'without a clear band' in told.reason
     # and play is answered from the band, whatever chain a caller attached, until a refit
     # behind that chain's timing shows a slip (test_stick_slip_behind).
-    play = {**STICK_SLIP, 'J': 0.0, 'J_interval': [0.0, 0.01], 'frictionless': rough_chain()}
+    play = {**STICK_SLIP, 'J': 0.0, 'J_interval': [0.0, 0.01], 'frictionless': rough_chain(),
+            'mse': 0.014}
     assert from_fits([play]).play == 3.0
+    # ... where it explains MV: play leaving 20 times MV's noise may be slips a lag smoothed.
+    assert from_fits([{**play, 'mse': 0.2}]).code == 'unexplained_mv'
     assert chain_words({**CHAIN, 'dead_time_s': 0.0, 'lag_s': 12.5, 'offset': 0.0,
                         'gain': 1.0}) == 'lag 12.5 s'
     assert chain_words({**CHAIN, 'stop_low': None, 'stop_high': 87.25}).endswith(

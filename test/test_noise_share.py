@@ -82,7 +82,7 @@ def test_a_fit_whose_valve_hardly_moves_claims_no_stiction():
 
 def test_play_whose_valve_hardly_moves_is_no_size_of_play():
     # A band without a slip jump is play, of a size read from the valve's moves.
-    play = fit(J=0.0, J_interval=[0.0, 0.02])
+    play = fit(J=0.0, J_interval=[0.0, 0.02], mse=1.2)
     told = from_fits([play])
     assert told.detected is False and told.play == pytest.approx(4.0)
     told = from_fits([{**play, 'slips': MIN_SLIPS - 1}])
@@ -128,3 +128,29 @@ def test_a_valve_without_friction_that_ties_within_the_noise_is_cannot_tell():
     # That valve down to the noise, stick-slip well above it: timing, not friction.
     told = from_fits([{**tie, 'frictionless': {**chain, 'mse': 4.0}, 'mse': 4.9}])
     assert told.detected is False and 'dead time 2 s' in told.without_friction
+
+
+def test_a_band_that_removes_too_little_is_no_stiction_only_over_a_known_noise():
+    # A clear band removing a tenth of an ideal valve's MSE (a sixth of what it leaves
+    # above a noise of 2), its jump within OP's move in a sample: no stiction.
+    weak = fit(mse=4.5, improvement=0.1, ideal_valve_mse=5.0, mv_noise_var=2.0, op_step=2.5)
+    assert from_fits([weak]).detected is False
+    # A held reading: most sample-to-sample changes are none, and the noise reads 0.
+    told = from_fits([{**weak, 'mv_noise_var': 0.0}])
+    assert told.detected is None and told.code == 'noise_unknown'
+    assert 'held or quantised' in told.reason
+    # MV moving between samples: the fit comes well under the noise its changes show.
+    told = from_fits([{**weak, 'mv_noise_var': 5.5}])
+    assert told.detected is None and told.code == 'noise_unknown'
+    assert 'MV moves between samples' in told.reason
+
+
+def test_play_is_no_stiction_only_where_it_explains_mv():
+    play = fit(J=0.0, J_interval=[0.0, 0.02], mse=1.2, mv_noise_var=1.0)
+    assert from_fits([play]).detected is False
+    # Leaving 5 times the noise: a lag in the reading may smooth slips into play.
+    told = from_fits([{**play, 'mse': 2.0, 'mv_noise_var': 0.4}])
+    assert told.detected is None and told.code == 'unexplained_mv'
+    assert "5 times MV's noise variance" in told.reason
+    told = from_fits([{**play, 'mv_noise_var': 0.0}])
+    assert told.detected is None and told.code == 'noise_unknown'

@@ -104,7 +104,8 @@ def test_the_refit_is_held_to_every_floor():
                   {'S_interval': [0.1, 2.7]}, {'mse': 0.35}, {'S_interval': None}):
         told = from_fits([{**base, 'behind': {**BEHIND, **worse}}])
         assert told.detected is not True, worse
-    assert from_fits([{**base, 'mse': 0.2, 'behind': {**BEHIND, 'mse': 0.25}}]).play == 3.6
+    assert from_fits([{**base, 'mse': 0.2, 'mv_noise_var': 0.15,
+                       'behind': {**BEHIND, 'mse': 0.25}}]).play == 3.6
     # A chain without a gain leaves no position to read back, a flat OP no valve to read.
     zero = {**CHAIN, 'gain': 0.0}
     assert fit_behind(np.arange(10.0), np.arange(10.0), [(0, 10)], 1.0, zero, 'kano') is None

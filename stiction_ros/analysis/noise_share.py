@@ -52,3 +52,15 @@ def share_above_noise(mse: float, reference: float | None, noise: float | None,
     if room <= error or mse < noise - error:
         return None
     return (reference - mse) / room
+
+
+def below_noise(mse: float, reference: float | None, noise: float, samples: int | None) -> bool:
+    """
+    Return whether a fit comes under MV's noise estimate by more than that estimate's error.
+
+    No model fits under a reading's white noise, so the estimate is then too
+    high: MV's own moves between samples are in its sample-to-sample changes.
+    """
+    if not (reference and samples):
+        return False
+    return mse < noise - ROOM / math.sqrt(samples) * reference

@@ -19,13 +19,14 @@ from stiction_ros.analysis.detection.detect import answer_of, reason_of
 from stiction_ros.analysis.detection.resolve import robust_noise
 from stiction_ros.analysis.detection.stretches import pooled_probability
 from stiction_ros.analysis.detection.timing import Alignment
+from stiction_ros.analysis.frictionless_valve import plausible
 from stiction_ros.analysis.identify import (given_fit, identify, IdentifyError, SearchProgress,
                                             ValveProblem)
 from stiction_ros.analysis.measures.still import set_point_test
 from stiction_ros.analysis.record import Record, runs
 from stiction_ros.analysis.stick_slip_behind import fit_behind
 from stiction_ros.analysis.verdict import behind_bar, combine, from_fits, NOISE_FIT, \
-    plausible, refuse_still
+    refuse_still
 from stiction_ros.analysis.without_friction import calibrated, fit_without_friction, \
     indices, still_reading
 

@@ -26,8 +26,8 @@ itself (:func:`.verdict.from_fits`).
 import numpy as np
 
 from stiction_ros.analysis.caution import slips
+from stiction_ros.analysis.frictionless_valve import plausible
 from stiction_ros.analysis.identify import confidence_box, identify, ValveProblem
-from stiction_ros.analysis.verdict import plausible
 from stiction_ros.analysis.without_friction import calibrated, indices, shift
 from stiction_ros.errors import IdentifyError
 

@@ -40,8 +40,9 @@ Without them the OP/PV signatures vote (:mod:`.signature_vote`).
 
 from dataclasses import dataclass
 
+from stiction_ros.analysis.frictionless_valve import chain_words, plausible
 from stiction_ros.analysis.measures.still import SetPointTest, Still
-from stiction_ros.analysis.noise_share import share_above_noise
+from stiction_ros.analysis.noise_share import below_noise, share_above_noise
 from stiction_ros.analysis.signature_vote import from_signatures
 from stiction_ros.analysis.signatures.ellipse import no_ellipse
 
@@ -53,10 +54,6 @@ MIN_J = 0.05
 NOISE_FIT = 1.5
 # A band and jump need repeated slips to be told from a one-off move: one cycle is two.
 MIN_SLIPS = 3
-# The calibration a position reading can have (gain; error at mid-span, % of span) and
-# still be read as working: a frictionless valve that needs more explains nothing.
-CALIBRATION_GAIN = (0.8, 1.25)
-CALIBRATION_OFFSET = 10.0
 
 
 @dataclass(frozen=True)
@@ -82,8 +79,8 @@ class FitVerdict:
         The S of a band without a slip jump, else None.
     code : str or None
         Why the answer is ``cannot tell`` (``noisy_mv``,
-        ``slip_unresolved``, ``few_slips``, ``frictionless_fits``, ``unexplained_mv``),
-        else None.
+        ``slip_unresolved``, ``few_slips``, ``frictionless_fits``, ``unexplained_mv``,
+        ``reading_fault``, ``noise_unknown``), else None.
     without_friction : str or None
         The stages of the valve without friction that explains MV where the
         answer rests on it (``no stiction``), else None.
@@ -227,6 +224,15 @@ def _plain(fits: list[dict]) -> FitVerdict:
     chain = best.get('frictionless')
     if detected and chain and plausible(chain) and not _beats(best, chain, noise):
         return _without_friction(best, chain, noise, why)
+    if detected and chain and not plausible(chain) and chain['mse'] < _stick_slip_mse(best):
+        # That valve needs a calibration no working reading has (one imitating friction
+        # comes close), yet fits better: a positioner fault, or a characteristic.
+        return FitVerdict(None, 0.0, best['S'], (
+            f'a valve without friction fits MV better than stick-slip ({_k_words(best)}), '
+            f'with MSE {chain["mse"]:.4g}, but only with a calibration no working reading '
+            f'has ({chain_words(chain)}): a positioner fault, or a nonlinear characteristic '
+            f'between the stem and its reading, which friction does not explain; {why}'),
+            code='reading_fault')
     if not banded and chain and not explains(chain, noise):
         # No stiction is a claim too: that a valve without friction explains MV.
         return _unexplained(best, chain, noise, lo >= MIN_S and j_lo >= floor, why)
@@ -253,9 +259,30 @@ def _plain(fits: list[dict]) -> FitVerdict:
             'constant (or a move or two) fits MV better than an ideal valve, for a reading '
             'off in offset, clipped at a stop or drifting, and its band and slip jump are '
             f'not identified, however narrow their ranges; {why}'), code='few_slips')
+    if not banded and lo >= MIN_S and j_hi >= MIN_J and noise is not None and (
+            not noise or below_noise(
+            best['mse'], best.get('ideal_valve_mse'), noise, best.get('samples'))):
+        # A clear band removing too little of an ideal valve's MSE says no stiction only
+        # where the rest is MV's noise, which a held reading or fast moves leave unknown.
+        heard = ('most of its sample-to-sample changes are none (a held or quantised '
+                 'reading)' if not noise else f'the fit comes under the {noise:.4g} its '
+                 'sample-to-sample changes show (MV moves between samples)')
+        return FitVerdict(None, 0.0, best['S'], (
+            f"a band of {best['S']:.2f} %{ranged} removes under "
+            f"{100 * MIN_IMPROVEMENT:.0f} % of an ideal valve's MSE, but MV's noise is not "
+            f'known ({heard}), so whether the rest is noise or friction cannot be told; '
+            f'{why}'), code='noise_unknown')
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
+    if j_hi < MIN_J and noise is not None and not best['mse'] <= NOISE_FIT * noise:
+        # Play is no stiction only where it explains MV: a lag smooths slips into play.
+        left = (f"leaves {best['mse'] / noise:.3g} times MV's noise variance ({noise:.4g})"
+                if noise else "MV's noise is not known (most of its changes are none)")
+        return FitVerdict(None, 0.0, best['S'], (
+            f'play of {best["S"]:.2f} % without a slip jump fits MV best, but it {left}: '
+            'a lag in the reading smooths slips into play; --explain fits friction behind '
+            f'it; {why}'), code='unexplained_mv' if noise else 'noise_unknown')
     if j_hi < MIN_J:
         return FitVerdict(False, 0.0, best['S'], (
             f'play of {best["S"]:.2f} % without a slip jump: J = {best["J"]:.2f} %{j_ranged} '
@@ -283,37 +310,6 @@ def j_floor(fit: dict) -> float:
     valve moves (``caution.step_while_moving``), where the pipeline gave it.
     """
     return max(MIN_J, fit.get('op_step') or 0.0)
-
-
-def plausible(chain: dict) -> bool:
-    """
-    Return whether a frictionless valve's calibration is one a reading can have.
-
-    A gain outside ``CALIBRATION_GAIN``, or a reading off by more than
-    ``CALIBRATION_OFFSET`` at mid-span, is a positioner fault, and a chain
-    that needs one to fit is imitating something else (a limit cycle sampled
-    too coarsely, friction): no explanation without friction.
-    """
-    lo, hi = CALIBRATION_GAIN
-    mid = chain['offset'] + (chain['gain'] - 1.0) * 50.0
-    return lo <= chain['gain'] <= hi and abs(mid) <= CALIBRATION_OFFSET
-
-
-def chain_words(chain: dict) -> str:
-    """Return the stages of a frictionless valve (``fits[].frictionless``) in words."""
-    words = []
-    if chain['dead_time_s'] > 0.0:
-        words.append(f'dead time {chain["dead_time_s"]:.3g} s')
-    if chain['lag_s'] > 0.0:
-        words.append(f'lag {chain["lag_s"]:.3g} s')
-    if abs(chain['offset']) >= 0.1 or abs(chain['gain'] - 1.0) >= 0.005:
-        words.append(f'MV = {chain["offset"]:.2f} + {chain["gain"]:.3f} x OP')
-    if chain.get('rate_pct_s') is not None:
-        words.append(f'rate limit {chain["rate_pct_s"]:.3g} %/s')
-    for name, key in (('low', 'stop_low'), ('high', 'stop_high')):
-        if chain.get(key) is not None:
-            words.append(f'{name} travel stop at {chain[key]:.3g} %')
-    return ', '.join(words) or 'MV = OP'
 
 
 def explains(chain: dict, noise: float | None) -> bool:

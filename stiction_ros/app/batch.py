@@ -37,7 +37,8 @@ WORKBOOK_SUFFIXES = ('.xlsx', '.xls', '.ods')
 # With MV, the fits' own reasons to answer cannot tell, in a tally's words.
 FITS_CANNOT_TELL = {'slip_unresolved': 'slip jump unresolved', 'noisy_mv': 'MV noise',
                     'frictionless_fits': 'frictionless valve fits',
-                    'unexplained_mv': 'MV unexplained', 'few_slips': 'too few slips'}
+                    'unexplained_mv': 'MV unexplained', 'few_slips': 'too few slips',
+                    'reading_fault': 'reading fault', 'noise_unknown': 'MV noise unknown'}
 
 
 def _is_bag(path):
