@@ -8,7 +8,7 @@ export PYTHONUNBUFFERED := 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: venv params demo reproduce accuracy mv-verdict robustness gaps probes shared-cycles detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
+.PHONY: venv params demo reproduce accuracy mv-verdict mv-probes robustness gaps probes shared-cycles detector cnn cnn-large cnn-large-tune test fuzz lint bench bench-detector bench-explain bench-load bench-all colcon clean
 
 # The demo: Table 2.1's undershoot case as a live loop of ROS 2 nodes on a
 # lockstep sim clock at 100x real time, recorded to out/demo_bag, then analysed
@@ -61,6 +61,14 @@ accuracy: venv
 mv-verdict: venv
 	$(PINNED) $(PY) -m stiction_ros.cli.mv_verdict --markdown docs/MV_VERDICT.md \
 	  --json docs/mv_verdict.json
+
+# The same verdict on loops whose position reading carries effects the rule was never set
+# on (a historian's deadband, drift, a held reading, two lags, a valve characteristic,
+# windup, ...), each with a frictionless and a sticky valve (docs/MV_PROBES.md; about
+# 4 min on 2 cores).
+mv-probes: venv
+	$(PINNED) $(PY) -m stiction_ros.cli.mv_probes --markdown docs/MV_PROBES.md \
+	  --json docs/mv_probes.json
 
 # The verdict on simulated loops read with PV damped after the controller, skewed clocks,
 # historian compression, a coarser grid and without the set point, beside the same loops

@@ -107,7 +107,7 @@ def _check(case, seed, sample_time, n_samples, noise):
         raise ValueError(f'noise must be a non-negative number, got {noise!r}')
 
 
-def _loop(rng, ts, span):
+def draw_loop(rng: np.random.Generator, ts: float, span: float) -> dict:
     """Draw plant, SIMC PI and steps as concealed_cases does at 1 s, then scale by ``ts``."""
     integrating = bool(rng.integers(2))
     delay = float(rng.uniform(2.0, 6.0))
@@ -226,7 +226,7 @@ def instrument_case(case: str, seed: int, sample_time: float = 1.0, n_samples: i
     ts = float(sample_time)
     friction, family, effects = _CASES[case]
     rng = np.random.default_rng(seed)
-    loop = _loop(rng, ts, float(n_samples - 1))
+    loop = draw_loop(rng, ts, float(n_samples - 1))
     # Drawn in every case, so that the sticky cases of a seed share one valve.
     S = float(rng.uniform(*STICTION))
     J = float(rng.uniform(*JUMP)) * S

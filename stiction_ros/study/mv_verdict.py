@@ -37,6 +37,7 @@ from stiction_ros.analysis.pipeline import analyze
 from stiction_ros.analysis.readers import load_record
 from stiction_ros.analysis.verdict import ANSWER, from_fits, MIN_IMPROVEMENT, MIN_S
 from stiction_ros.errors import StictionError
+from stiction_ros.sim import reading_probes
 from stiction_ros.sim.closed_loop import write_csv
 from stiction_ros.sim.instrument_cases import CASES, instrument_case
 
@@ -53,29 +54,35 @@ RULES = ('answer', 'on_time', 'jump', 'old')
 
 @dataclass(frozen=True)
 class Run:
-    """One record: the case, its seed, sampling and noise."""
+    """One record: the case, its seed, sampling and noise, and which cases it is of."""
 
     case: str
     seed: int
     sample_time: float
     noise: float
     extra_mv_noise: float
+    family: str = 'instrument'
 
 
-def runs(per_case: int, first_seed: int) -> list[Run]:
+# The cases each family draws: the instrument cases the rule was set on, and the reading
+# effects it never met (stiction_ros.sim.reading_probes).
+FAMILIES = {'instrument': CASES, 'probe': reading_probes.CASES}
+
+
+def runs(per_case: int, first_seed: int, family: str = 'instrument') -> list[Run]:
     """
-    Return the runs: each case on seeds ``first_seed`` onwards.
+    Return the runs: each case of ``family`` on seeds ``first_seed`` onwards.
 
     Sample time, the loop's noise and the extra MV noise cycle over the runs
     of a case so that each meets each, and one seed draws one loop for every
     case (so the cases of a seed differ only in what they hide).
     """
     out = []
-    for case in CASES:
+    for case in FAMILIES[family]:
         for i in range(per_case):
             out.append(Run(case, first_seed + i, SAMPLE_TIMES[i % len(SAMPLE_TIMES)],
                            NOISES[(i // len(EXTRA_MV_NOISE)) % len(NOISES)],
-                           EXTRA_MV_NOISE[i % len(EXTRA_MV_NOISE)]))
+                           EXTRA_MV_NOISE[i % len(EXTRA_MV_NOISE)], family))
     return out
 
 
@@ -110,10 +117,15 @@ def jump_rule(stiction: dict, fits: list[dict]) -> str:
 
 def read(run: Run) -> dict:
     """Simulate one run, analyse its CSV as the analyzer does, return what it answered."""
-    record, truth = instrument_case(run.case, run.seed, sample_time=run.sample_time,
-                                    n_samples=N_SAMPLES, noise=run.noise)
+    if run.family == 'probe':
+        # The probe adds the noisier transmitter itself, before the reading's effect.
+        record, truth = reading_probes.probe_case(run.case, run.seed, run.sample_time,
+                                                  N_SAMPLES, run.noise, run.extra_mv_noise)
+    else:
+        record, truth = instrument_case(run.case, run.seed, sample_time=run.sample_time,
+                                        n_samples=N_SAMPLES, noise=run.noise)
     mv = record['mv']
-    if run.extra_mv_noise:
+    if run.extra_mv_noise and run.family != 'probe':
         # Its own stream: the loop of a seed stays the same in every case.
         rng = np.random.default_rng([run.seed, 29])
         mv = mv + run.extra_mv_noise * rng.standard_normal(len(mv))
@@ -217,10 +229,11 @@ def _balanced(tp: int, pos: int, tn: int, neg: int) -> float | None:
 
 
 def run(per_case: int, first_seed: int, jobs: int = 1,
-        say: Callable[[int, int, float], None] | None = None) -> MvVerdictStudy:
-    """Return the study of ``per_case`` seeds of every case from ``first_seed``."""
+        say: Callable[[int, int, float], None] | None = None,
+        family: str = 'instrument') -> MvVerdictStudy:
+    """Return the study of ``per_case`` seeds of every case of ``family`` from ``first_seed``."""
     t0, rows = time.perf_counter(), []
-    todo = runs(per_case, first_seed)
+    todo = runs(per_case, first_seed, family)
     for i, row in enumerate(pool_map(read, todo, jobs, chunksize=2), 1):
         rows.append(row)
         if say is not None:
