@@ -17,8 +17,7 @@ mv-probes``).  These seeds choose nothing.
 import argparse
 import sys
 
-from stiction_ros.cli.mv_verdict import LABELS, render_only, summary_row
-from stiction_ros.cli.text import run_seeded, run_stamp, save_study, seeded_parser
+from stiction_ros.cli.mv_verdict import LABELS, page_parser, score, summary_row
 
 # 9100000-9100014 were read by the first version of the probe (its own generator) and
 # set three rules of the verdict; 9100100-9100114 scored them with that generator.
@@ -27,11 +26,8 @@ FIRST_SEED = 9_100_200
 
 def parser() -> argparse.ArgumentParser:
     """Return the command-line parser."""
-    p = seeded_parser('stiction-mv-probes', __doc__, FIRST_SEED, 15, 'MV_PROBES',
-                      'seeds per probe (default 15)')
-    p.add_argument('--render-only', action='store_true',
-                   help='score nothing: rewrite --markdown from the study in --json')
-    return p
+    return page_parser('stiction-mv-probes', __doc__, FIRST_SEED, 15, 'MV_PROBES',
+                       'seeds per probe (default 15)')
 
 
 def _answers(counts: dict) -> str:
@@ -122,25 +118,7 @@ HISTORY = (
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point."""
-    args = parser().parse_args(argv)
-    if args.render_only:
-        return render_only('stiction-mv-probes', args, markdown)
-    from stiction_ros.study.mv_verdict import run
-
-    def study_run(seeds, jobs, say):
-        return run(len(seeds), seeds.start, jobs, say, family='probe')
-    study = run_seeded('stiction-mv-probes', args, study_run, 'records read')
-    if study is None:
-        return 2
-    out = {**study.to_json(), 'run': run_stamp(args.jobs)}
-    if not save_study('stiction-mv-probes', out, args, markdown):
-        return 2
-    for key, _, name in LABELS:
-        t = out[key]
-        print(f"{name:>13}: {t['wrong']} wrong, {t['cannot_tell']} cannot tell, "
-              f"{t['errors']} errors of {t['records']}")
-    print(f'wrote {args.markdown} and {args.json}')
-    return 0
+    return score('stiction-mv-probes', parser().parse_args(argv), markdown, 'probe')
 
 
 if __name__ == '__main__':

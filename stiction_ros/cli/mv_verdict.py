@@ -26,13 +26,19 @@ from stiction_ros.cli.text import figure, run_seeded, run_stamp, save_study, see
 FIRST_SEED = 761_600
 
 
-def parser() -> argparse.ArgumentParser:
-    """Return the command-line parser."""
-    p = seeded_parser('stiction-mv-verdict', __doc__, FIRST_SEED, 24, 'MV_VERDICT',
-                      'seeds per case (default 24)')
+def page_parser(prog: str, doc: str | None, first_seed: int, seeds: int, page: str,
+                seeds_help: str) -> argparse.ArgumentParser:
+    """Return a seeded study's parser with ``--render-only`` (rewrite the page from its JSON)."""
+    p = seeded_parser(prog, doc, first_seed, seeds, page, seeds_help)
     p.add_argument('--render-only', action='store_true',
                    help='score nothing: rewrite --markdown from the study in --json')
     return p
+
+
+def parser() -> argparse.ArgumentParser:
+    """Return the command-line parser."""
+    return page_parser('stiction-mv-verdict', __doc__, FIRST_SEED, 24, 'MV_VERDICT',
+                       'seeds per case (default 24)')
 
 
 # Each rule of study.mv_verdict.RULES, as the page names it (short: in the table headers).
@@ -275,20 +281,19 @@ def render_only(prog: str, args, page) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point."""
-    args = parser().parse_args(argv)
+def score(prog: str, args, page, family: str = 'instrument') -> int:
+    """Score ``family``'s cases on the seeds ``args`` give (or only render); return the code."""
     if args.render_only:
-        return render_only('stiction-mv-verdict', args, markdown)
+        return render_only(prog, args, page)
     from stiction_ros.study.mv_verdict import run
 
     def study_run(seeds, jobs, say):
-        return run(len(seeds), seeds.start, jobs, say)
-    study = run_seeded('stiction-mv-verdict', args, study_run, 'records read')
+        return run(len(seeds), seeds.start, jobs, say, family=family)
+    study = run_seeded(prog, args, study_run, 'records read')
     if study is None:
         return 2
     out = {**study.to_json(), 'run': run_stamp(args.jobs)}
-    if not save_study('stiction-mv-verdict', out, args, markdown):
+    if not save_study(prog, out, args, page):
         return 2
     for key, _, name in LABELS:
         t = out[key]
@@ -296,6 +301,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{t['errors']} errors of {t['records']}")
     print(f'wrote {args.markdown} and {args.json}')
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point."""
+    return score('stiction-mv-verdict', parser().parse_args(argv), markdown)
 
 
 if __name__ == '__main__':
