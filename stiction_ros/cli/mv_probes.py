@@ -108,12 +108,12 @@ HISTORY = (
     "stiction where it left 50 times MV's noise (two lags smooth slips into play). Now "
     '`reading_fault`, `noise_unknown` and `unexplained_mv` answer those (README, '
     '`stiction.cannot_tell`). On the same seeds the mended rule gave 9 wrong (3/180, '
-    '6/180) against 22; on seeds 9100100-9100114 of that first generator, fresh, 3 wrong (1/180 healthy '
-    'valves called stiction, a drifting reading that stick-slip read behind its timing '
-    'fitted with J above S; 2/180 sticky valves no stiction, behind two lags) and 165 '
-    'cannot tell, against 14 wrong (2/180, 12/180) and 143 cannot tell for the rule before '
-    'it. This page is that probe rewritten into the package (its draws differ), on seeds '
-    'neither version had read.')
+    '6/180) against 22; on seeds 9100100-9100114 of that first generator, fresh, 3 '
+    'wrong (1/180 healthy valves called stiction, a drifting reading that stick-slip '
+    'read behind its timing fitted with J above S; 2/180 sticky valves no stiction, '
+    'behind two lags) and 165 cannot tell, against 14 wrong (2/180, 12/180) and 143 '
+    'cannot tell for the rule before it. This page is that probe rewritten into the '
+    'package (its draws differ), on seeds neither version had read.')
 
 
 def main(argv: list[str] | None = None) -> int:
