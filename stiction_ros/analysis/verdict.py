@@ -34,6 +34,11 @@ plain fits' claim and an answer of none that rests on that valve count what
 lies above MV's noise as well: where the two tie above it, ``cannot tell``;
 where stick-slip itself fits within the noise estimate's error of the noise,
 a valve without friction that fits as well is the answer, as before.
+Where that valve needs a calibration no working reading has, it explains no
+stiction away, but a claim must still fit MV better (``reading_fault``).  An
+answer of none that rests on no such valve needs MV's noise known (a held
+reading reads none, fast moves too much: ``noise_unknown``), and play must
+fit MV within ``NOISE_FIT`` times that noise.
 
 Without them the OP/PV signatures vote (:mod:`.signature_vote`).
 """
