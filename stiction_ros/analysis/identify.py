@@ -306,9 +306,10 @@ def best_play(problem, limit: float, resolution: float = 0.01) -> tuple[float, f
     abandoned past twice ``limit``; the fine search runs about the three best
     coarse ones that came under it.
     """
-    used = np.concatenate([problem.u[a:b] for a, b in zip(problem.starts, problem.stops)])
-    travel = float(np.ptp(used[np.isfinite(used)])) if np.isfinite(used).any() else 0.0
-    coarse = _axis(0.0, min(travel, 100.0), PLAY_STEP, resolution)
+    runs = list(zip(problem.starts, problem.stops))
+    s_max, _ = plausible_box(np.concatenate([problem.u[a:b] for a, b in runs]),
+                             np.concatenate([problem.y[a:b] for a, b in runs]))
+    coarse = _axis(0.0, s_max, PLAY_STEP, resolution)
     scores = problem.grid(coarse, [0.0], 2.0 * limit)[:, 0]
     near = [float(coarse[i]) for i in np.argsort(scores, kind='stable')[:3]
             if scores[i] < 2.0 * limit]

@@ -48,7 +48,7 @@ def share_above_noise(mse: float, reference: float | None, noise: float | None,
     """
     if not (reference and noise and samples and samples > 0):
         return None
-    room, error = reference - noise, ROOM / math.sqrt(samples) * reference
+    room, error = reference - noise, _error(reference, samples)
     if room <= error or mse < noise - error:
         return None
     return (reference - mse) / room
@@ -63,4 +63,9 @@ def below_noise(mse: float, reference: float | None, noise: float, samples: int 
     """
     if not (reference and samples):
         return False
-    return mse < noise - ROOM / math.sqrt(samples) * reference
+    return mse < noise - _error(reference, samples)
+
+
+def _error(reference: float, samples: int) -> float:
+    # The noise estimate's error, in the reference's units (ROOM says why).
+    return ROOM / math.sqrt(samples) * reference

@@ -280,7 +280,7 @@ def _plain(fits: list[dict]) -> FitVerdict:
     if not banded or detected:
         return FitVerdict(detected, score, best['S'], why)
     # The band is real; the score is the evidence for stick-slip, which it lacks.
-    if j_hi < MIN_J and noise is not None and not best['mse'] <= NOISE_FIT * noise:
+    if j_hi < MIN_J and noise is not None and best['mse'] > NOISE_FIT * noise:
         # Play is no stiction only where it explains MV: a lag smooths slips into play.
         left = (f"leaves {best['mse'] / noise:.3g} times MV's noise variance ({noise:.4g})"
                 if noise else "MV's noise is not known (most of its changes are none)")

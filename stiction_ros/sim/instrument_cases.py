@@ -214,6 +214,25 @@ def measured(mv_true: np.ndarray, sizes: dict, ts: float, mv_std: float,
     return x
 
 
+def simulate_drawn(loop: dict, ts: float, n_samples: int, valve: dict, noise: float,
+                   seed: int, mv0: float = 50.0, loads: list | None = None) -> dict:
+    """
+    Return the record of ``loop`` (from :func:`draw_loop`) run with ``valve``.
+
+    PV noise scales with ``noise`` as in :func:`instrument_case`; MV carries
+    none (the caller reads the position through its own effects).  ``mv0``
+    is the operating point (OP's bias too), ``loads`` more load steps.
+    """
+    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
+        'sample_time': ts, 'plant.num': loop['num'], 'plant.den': loop['den'],
+        'plant.delay': loop['delay'], 'plant.mv0': mv0, 'controller.bias': mv0,
+        'controller.Kc': loop['Kc'], 'controller.Ti': loop['Ti'],
+        'controller.setpoint': {'type': 'steps', 'steps': loop['steps']},
+        'plant.disturbance_steps': list(loop['loads']) + list(loads or []), 'valve': valve,
+        'noise': {'pv_std': 0.01 * 8.0 * loop['move'] * noise, 'mv_std': 0.0, 'seed': int(seed)}})
+    return simulate_loop(cfg, (n_samples - 1) * ts)
+
+
 def instrument_case(case: str, seed: int, sample_time: float = 1.0, n_samples: int = 8641,
                     noise: float = 1.0) -> tuple[dict, dict]:
     """
@@ -239,14 +258,7 @@ def instrument_case(case: str, seed: int, sample_time: float = 1.0, n_samples: i
         # Kano's model with no slip jump is pure play: the valve follows OP at S/2 behind.
         valve = {'model': 'kano', 'S': sizes['backlash'], 'J': 0.0}
     mv_std = 0.1 * noise
-    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
-        'sample_time': ts, 'plant.num': loop['num'], 'plant.den': loop['den'],
-        'plant.delay': loop['delay'], 'controller.Kc': loop['Kc'], 'controller.Ti': loop['Ti'],
-        'controller.setpoint': {'type': 'steps', 'steps': loop['steps']},
-        'plant.disturbance_steps': loop['loads'], 'valve': valve,
-        # MV noise is added below, after the instrument effects and before rounding.
-        'noise': {'pv_std': 0.01 * 8.0 * loop['move'] * noise, 'mv_std': 0.0, 'seed': int(seed)}})
-    record = simulate_loop(cfg, (n_samples - 1) * ts)
+    record = simulate_drawn(loop, ts, n_samples, valve, noise, seed)
     # The stream simulate_loop itself would draw MV noise from.
     noise_rng = np.random.default_rng(int(seed) + 1)
     record['mv'] = measured(record['mv_true'], sizes, ts, mv_std, noise_rng)

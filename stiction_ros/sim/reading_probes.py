@@ -41,10 +41,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from stiction_ros.models.lags import first_order_pole
-from stiction_ros.resources import config_file
-from stiction_ros.sim.closed_loop import simulate_loop
-from stiction_ros.sim.instrument_cases import draw_loop, JUMP, STICTION
-from stiction_ros.sim.loop_config import load_loop
+from stiction_ros.sim.instrument_cases import draw_loop, JUMP, simulate_drawn, STICTION
 
 EFFECTS = ('historian', 'drift', 'sample_hold', 'two_lag', 'characteristic', 'windup',
            'asym_actuator', 'jitter_drop', 'spikes', 'pink_noise', 'osc_load', 'frozen')
@@ -59,21 +56,14 @@ def _loop_record(seed: int, ts: float, n: int, noise: float, sticky: bool, mv0: 
     S = float(rng.uniform(*STICTION))
     J = float(rng.uniform(*JUMP)) * S
     valve = {'model': 'kano', 'S': S, 'J': J} if sticky else {'model': 'linear'}
-    loads = list(loop['loads'])
+    loads = []
     if wave is not None:
         # A sine on PV (period in samples, amplitude in plant moves) as a step each sample.
         period, amp = wave
         k = np.arange(1, n)
         level = amp * loop['move'] * np.sin(2.0 * np.pi * k / period)
-        loads += [(float(i * ts), float(d)) for i, d in zip(k, np.diff(level, prepend=0.0))]
-    cfg = load_loop(config_file('concentration_loop.yaml'), overrides={
-        'sample_time': ts, 'plant.num': loop['num'], 'plant.den': loop['den'],
-        'plant.delay': loop['delay'], 'plant.mv0': mv0, 'controller.bias': mv0,
-        'controller.Kc': loop['Kc'], 'controller.Ti': loop['Ti'],
-        'controller.setpoint': {'type': 'steps', 'steps': loop['steps']},
-        'plant.disturbance_steps': loads, 'valve': valve,
-        'noise': {'pv_std': 0.01 * 8.0 * loop['move'] * noise, 'mv_std': 0.0, 'seed': int(seed)}})
-    return simulate_loop(cfg, (n - 1) * ts), valve
+        loads = [(float(i * ts), float(d)) for i, d in zip(k, np.diff(level, prepend=0.0))]
+    return simulate_drawn(loop, ts, n, valve, noise, seed, mv0, loads), valve
 
 
 def _lag(x: np.ndarray, tau: float, ts: float) -> np.ndarray:

@@ -121,14 +121,13 @@ def read(run: Run) -> dict:
         # The probe adds the noisier transmitter itself, before the reading's effect.
         record, truth = reading_probes.probe_case(run.case, run.seed, run.sample_time,
                                                   N_SAMPLES, run.noise, run.extra_mv_noise)
+        mv = record['mv']
     else:
         record, truth = instrument_case(run.case, run.seed, sample_time=run.sample_time,
                                         n_samples=N_SAMPLES, noise=run.noise)
-    mv = record['mv']
-    if run.extra_mv_noise and run.family != 'probe':
         # Its own stream: the loop of a seed stays the same in every case.
-        rng = np.random.default_rng([run.seed, 29])
-        mv = mv + run.extra_mv_noise * rng.standard_normal(len(mv))
+        mv = record['mv'] + run.extra_mv_noise * np.random.default_rng(
+            [run.seed, 29]).standard_normal(len(record['mv']))
     base = {'case': run.case, 'seed': run.seed, 'sample_time': run.sample_time,
             'extra_mv_noise': run.extra_mv_noise,
             'mv_noise': round(math.hypot(0.1 * run.noise, run.extra_mv_noise), 4),
