@@ -4,6 +4,10 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 # Fast DDS over UDP on the loopback: its shared-memory transport hung nodes now and then.
 export FASTDDS_BUILTIN_TRANSPORTS ?= UDPv4
 export PYTHONUNBUFFERED := 1
+# Python's byte-code cache stays on for all run from here, though a shell may set
+# PYTHONDONTWRITEBYTECODE: without it each test worker, node and command compiles
+# every module it imports again (collecting the tests took 12.9 s against 6.9 s).
+unexport PYTHONDONTWRITEBYTECODE
 
 VENV ?= .venv
 PY := $(VENV)/bin/python

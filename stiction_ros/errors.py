@@ -71,6 +71,10 @@ class DetectorFileError(StictionError):
     """The detector's model file is missing, damaged or of another version."""
 
 
+class TrainingSetError(StictionError, ValueError):
+    """A simulated set keeps too few records of a label to train or calibrate on."""
+
+
 # Layers nodes and cli ----------------------------------------------------------------------
 
 class StateFileError(StictionError, ValueError):

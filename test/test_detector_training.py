@@ -71,15 +71,26 @@ def test_the_make_target_writes_a_model_that_names_the_code_its_figures_ran_on(t
     x86 = platform.machine().lower() in ('x86_64', 'amd64')
     env = {**os.environ, _blas.NUMPY_PIN: ' '.join(_blas.NUMPY_ABOVE_AVX2) if x86 else ''}
     out = tmp_path / 'd.npz'
-    res = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.detector', '--train', '100',
-                          '--calibration', '50', '--jobs', '1', '--cache',
+    # 60 and 20 seeds keep 9 and 3 sticky records: the fewest that train and calibrate.
+    res = subprocess.run([sys.executable, '-m', 'stiction_ros.cli.detector', '--train', '60',
+                          '--calibration', '20', '--jobs', '1', '--cache',
                           str(tmp_path / 'cache'), '--out', str(out)],
                          env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     model = model_file.load(out, FEATURE_NAMES)
-    assert model.meta['train_seeds'] == [dataset.TRAIN.start, dataset.TRAIN.start + 100]
+    assert model.meta['train_seeds'] == [dataset.TRAIN.start, dataset.TRAIN.start + 60]
     assert f'figures computed with: {model.meta["kernels"]}' in res.stderr
     if x86 and set(_blas.NEEDS) <= _blas._cpu_flags():
         # The header says the pin held: the Haswell kernels and AVX2 code alone.
         assert model.meta['kernels'].startswith(_blas.KERNEL + ';')
         assert model.meta['kernels'].endswith('; X86_V3')
+
+
+def test_a_set_too_small_to_train_on_is_refused_with_the_count_it_lacks(capsys):
+    from stiction_ros.cli.detector import enough_of_each, main, MIN_TRAIN
+    from stiction_ros.errors import TrainingSetError
+    assert main(['--train', str(MIN_TRAIN - 1), '--out', '/nonexistent/d.npz']) == 2
+    assert f'at least {MIN_TRAIN} training' in capsys.readouterr().err
+    enough_of_each(np.array([1, 0, 1, 0, 0]), 2, 'training')
+    with pytest.raises(TrainingSetError, match='keeps 1 sticky and 4 healthy.*needs 2 of each'):
+        enough_of_each(np.array([1, 0, 0, 0, 0]), 2, 'training')

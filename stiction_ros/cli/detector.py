@@ -28,6 +28,7 @@ from stiction_ros._blas import kernels
 from stiction_ros.analysis.detection import cnn, dataset, deadband_like, model_file, stack
 from stiction_ros.analysis.detection.features import FEATURE_NAMES
 from stiction_ros.cli.text import description, pipe_safe
+from stiction_ros.errors import TrainingSetError
 from stiction_ros.study.accuracy import balanced_accuracy, confusion
 
 
@@ -47,6 +48,21 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+# A floor against a typing slip; what the trees need is checked on the sets drawn.
+MIN_TRAIN, MIN_CALIBRATION = 30, 20
+
+
+def enough_of_each(y: np.ndarray, least: int, what: str) -> None:
+    """Raise TrainingSetError unless ``y`` holds ``least`` records of each label."""
+    sticky = int(np.sum(y))
+    healthy = len(y) - sticky
+    if min(sticky, healthy) < least:
+        raise TrainingSetError(
+            f'the {what} set keeps {sticky} sticky and {healthy} healthy records once the '
+            f'sticky ones a deadband explains are left out; it needs {least} of each: '
+            'give it more records')
+
+
 def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> tuple:
     """Return (TreeModel, figures) trained and calibrated on fresh simulated records."""
     import sklearn
@@ -61,6 +77,8 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     # Taught as sticky, they teach "a deadband is stiction", and backlash is healthy.
     say('training records that OP and PV cannot tell from a deadband: left out')
     tr = deadband_like.leave_out(deadband_like.mark(tr, jobs, cache))
+    # Each of the stack's folds holds a record of each label.
+    enough_of_each(tr['y'], FOLDS, 'training')
     say(f'calibration set: {n_cal} records (seeds {ca_seeds.start}-{ca_seeds.stop - 1})')
     ca = dataset.build(ca_seeds, jobs, cache=cache)
     # The logits are kept under the whole set's seeds; the map is fitted on the
@@ -70,6 +88,7 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
     say('calibration records that OP and PV cannot tell from a deadband: left out of the map')
     whole = deadband_like.mark(ca, jobs, cache)
     ca = deadband_like.leave_out(whole)
+    enough_of_each(ca['y'], 2, 'calibration')
     t1 = time.perf_counter()
     meta = {'version': model_file.VERSION, 'file': 'stiction_detector.npz',
             'trained_on': (f'{len(tr["y"])} simulated closed loops (seeds {tr_seeds.start}-'
@@ -117,13 +136,17 @@ def build_model(n_train: int, n_cal: int, jobs: int, say=print, cache=None) -> t
 def main(argv=None) -> int:
     """Entry point."""
     args = parser().parse_args(argv)
-    if args.train < 100 or args.calibration < 50:
-        print('stiction-detector: error: at least 100 training and 50 calibration records',
-              file=sys.stderr)
+    if args.train < MIN_TRAIN or args.calibration < MIN_CALIBRATION:
+        print(f'stiction-detector: error: at least {MIN_TRAIN} training and {MIN_CALIBRATION} '
+              'calibration records', file=sys.stderr)
         return 2
-    model, figures = build_model(args.train, args.calibration, args.jobs,
-                                 lambda m: print(m, file=sys.stderr, flush=True),
-                                 args.cache or None)
+    try:
+        model, figures = build_model(args.train, args.calibration, args.jobs,
+                                     lambda m: print(m, file=sys.stderr, flush=True),
+                                     args.cache or None)
+    except TrainingSetError as e:
+        print(f'stiction-detector: error: {e}', file=sys.stderr)
+        return 2
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     model_file.save(args.out, model)
     model_file.load(args.out, FEATURE_NAMES)
