@@ -5,7 +5,31 @@ import math
 import numpy as np
 import pytest
 
-from stiction_ros.sim.plant import PlantError, TransferFunctionPlant
+from stiction_ros.sim.plant import PlantError, state_space, TransferFunctionPlant, zoh
+
+
+def test_realisation_and_hold_are_scipy_signals_to_the_bit():
+    # The plant writes out tf2ss and cont2discrete(zoh) to spare its node scipy.signal's
+    # import: on random stable and integrating processes, with and without zeros, static
+    # gains included, they must give scipy.signal's very matrices.
+    from scipy import signal
+    rng = np.random.default_rng(20261208)
+    cases = [([2.0], [4.0]), ([3.0], [1.0, 0.0]), ([1.0, 2.0], [3.0, 4.0, 1.0])]
+    for _ in range(60):
+        n = int(rng.integers(1, 5))
+        den = np.poly(-rng.uniform(0.01, 5.0, n)) * rng.uniform(0.1, 10.0)
+        if rng.random() < 0.25:
+            den = np.append(den, 0.0)          # a pole at s = 0
+        cases.append((rng.normal(size=int(rng.integers(1, den.size + 1))), den))
+    for num, den in cases:
+        num, den = np.asarray(num, float), np.asarray(den, float)
+        ours, ref = state_space(num, den), signal.tf2ss(num, den)
+        for a, b in zip(ours, ref):
+            np.testing.assert_array_equal(a, b)
+        dt = float(rng.uniform(0.01, 3.0))
+        phi, gam, *_ = signal.cont2discrete(ref, dt, method='zoh')
+        np.testing.assert_array_equal(zoh(ours[0], ours[1], dt)[0], phi)
+        np.testing.assert_array_equal(zoh(ours[0], ours[1], dt)[1], gam)
 
 
 @pytest.mark.parametrize('delay', [0.0, 10.0, 2.5, 0.3])

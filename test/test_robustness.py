@@ -78,13 +78,13 @@ def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_
     from stiction_ros.analysis.detection import dataset, deadband_like
     from stiction_ros.cli.robustness import main
     from stiction_ros.study.robustness import CONDITIONS, run
-    # 8 seeds: 6 scored (one sticky), 2 that cannot be judged.
-    seeds = range(3_600_000, 3_600_008)
+    # 4 seeds: 3 scored (one sticky), 1 that cannot be judged.
+    seeds = range(3_600_000, 3_600_004)
     study = run(seeds, jobs=1)
     acc = deadband_like.leave_out(deadband_like.mark(dataset.build(seeds, progress=False)))
     assert study.seed.tolist() == acc['seed'].tolist()
     assert study.label.tolist() == acc['y'].tolist()
-    assert len(study.label) + study.unscored == 8 and 0 < len(study.label) < 8
+    assert len(study.label) + study.unscored == 4 and 0 < len(study.label) < 4
     assert 0 < study.label.sum() < len(study.label)
     assert [r['condition'] for r in study.rows] == [c[0] for c in CONDITIONS]
     for r in study.rows:

@@ -281,10 +281,11 @@ class Physical(ValveModel):
         'substep': (1e-5, 1e-8, 1.0, 'internal step of the substep integrator (s)'),
     }
 
-    def _validate(self, values: dict[str, Any]) -> dict[str, Any]:
+    @classmethod
+    def _validate(cls, values: dict[str, Any]) -> dict[str, Any]:
         """Check ranges, then the physical cross-checks."""
         out = super()._validate(values)
-        n = self.name
+        n = cls.name
         if out['p_max'] <= out['p_min']:
             raise ModelError(f'{n}: p_max = {out["p_max"]} must exceed p_min = {out["p_min"]}')
         if out['Fs'] < out['Fc']:

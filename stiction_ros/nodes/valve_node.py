@@ -71,20 +71,23 @@ class ValveNode(SampledNode):
         self.start()
         self.get_logger().info(f'{self.model!r} at {self.sample_time} s')
 
-    def _build(self, name, values):
+    def _kwargs(self, name, values):
         cls = MODELS[name]
         kwargs = {k: values[k] for k in cls.PARAMS if k in values}
         if 'sample_time' in cls.PARAMS:
             kwargs['sample_time'] = self.sample_time
-        return create(name, **kwargs)
+        return kwargs
+
+    def _build(self, name, values):
+        return create(name, **self._kwargs(name, values))
 
     def check(self, values, changes):
-        """Build every model the change touches; return the first model error."""
+        """Check every model the change touches, as its build would; return the first error."""
         touched = {values['model']} if 'model' in changes else set()
         touched |= {m for m, cls in MODELS.items() if set(changes) & set(cls.PARAMS)}
         for name in sorted(touched):
             try:
-                self._build(name, values)
+                MODELS[name].checked(**self._kwargs(name, values))
             except ModelError as err:
                 return str(err)
         return None
