@@ -136,18 +136,20 @@ cnn-large-tune: venv
 	  --init stiction_ros/resources/stiction_cnn_large_base.npz \
 	  --out stiction_ros/resources/stiction_cnn_large.npz $(CNN_ARGS)
 
-# Tests that start no ROS node run on two workers (pytest-xdist), a test file whole
-# in one.  Those that do (marker `ros`) then run on two workers too, each on its own ROS
-# domain (conftest) and with its waits stretched 3x (ros_helpers.SLACK): there the waits
-# took up to 0.66 of the unstretched limit.  Last, one at a time, the `alone` ones: a
-# node under SCHED_FIFO takes a core, the clock-fault test counts samples that a busy
-# machine lets pass (its nodes took 13-19 s to start beside CPU-bound tests), and a
-# valve killed and respawned beside another file left no gap in one CI run.  The slowest
-# tests are listed at the end of each part: the suite must stay under 15 min on 2 cores.
+# The tests run on two workers (pytest-xdist), a test file whole in one, the files that
+# hold a slow test first (conftest), so that the run ends on short files.  Those that
+# start ROS nodes (marker `ros`) run beside the others, each worker on its own ROS domain
+# (conftest) and with its waits stretched 3x (ros_helpers.SLACK): there the waits took
+# up to 0.66 of the unstretched limit.  One run of both kinds fills the cores that the
+# nodes' waits leave idle (21 % of the ROS tests' 250 s run alone).  Last, one at a
+# time, the `alone` ones: a node under SCHED_FIFO takes a core, the clock-fault test
+# counts samples that a busy machine lets pass (its nodes took 13-19 s to start beside
+# CPU-bound tests), and a valve killed and respawned beside another file left no gap in
+# one CI run.  The slowest tests are listed at the end of each part: the suite must stay
+# under 15 min on 2 cores.
 TEST_JOBS ?= 2
 test: venv
-	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not ros' --durations=15 test
-	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'ros and not alone' --durations=10 test
+	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not alone' --durations=20 test
 	$(PY) -m pytest -q -m 'ros and alone' --durations=5 test
 
 # The input fuzz suite with fresh random inputs, 1 500 per test (CI runs 120, always the same).

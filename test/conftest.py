@@ -25,6 +25,12 @@ os.environ.setdefault('MPLBACKEND', 'Agg')
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
+def pytest_collection_modifyitems(items):
+    """Run the files that hold a slow test first: xdist then ends on short files, not one long."""
+    slow = {item.path for item in items if item.get_closest_marker('slow')}
+    items.sort(key=lambda item: item.path not in slow)
+
+
 @pytest.fixture(scope='module')
 def probe(request):
     """Return an rclpy node of the test module's own, spinning in a thread."""

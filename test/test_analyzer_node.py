@@ -77,6 +77,7 @@ def test_bad_input_publishes_an_error_and_exits_2(diagnostics, tmp_path):
     assert status.level == DiagnosticStatus.ERROR and "no 'op' column" in status.message
 
 
+@pytest.mark.slow
 def test_a_bag_cut_short_is_analysed_and_the_damage_logged_as_a_warning(diagnostics, tmp_path):
     from stiction_ros.resources import config_file
     from stiction_ros.sim.closed_loop import simulate_loop

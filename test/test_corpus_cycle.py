@@ -3,11 +3,13 @@
 import dataclasses
 
 import numpy as np
+import pytest
 
 from stiction_ros.sim.corpus import draw_scenario, simulate
 from stiction_ros.sim.corpus_signals import upstream_cycle, wave
 
 
+@pytest.mark.slow
 def test_upstream_cycles_are_drawn_for_both_labels_alike_at_judgeable_periods():
     drawn = [draw_scenario(s) for s in range(1500)]
     for label in (False, True):

@@ -68,6 +68,7 @@ def test_equal_percentage_plant_gains_more_opening_than_closing():
     assert rise / fall > 1.1
 
 
+@pytest.mark.slow
 def test_nonlinearities_are_drawn_for_both_labels_alike_and_leave_other_draws_alone():
     drawn = [draw_scenario(s) for s in range(1500)]
     for label in (False, True):
@@ -103,6 +104,7 @@ def test_healthy_nonlinear_loops_stay_inside_ops_range():
     assert checked > 20
 
 
+@pytest.mark.slow
 def test_level_laws_keep_even_aggressive_loops_off_ops_limits():
     # Error squared without its cap slammed OP between 0 and 100 % on 7 of 19
     # aggressively tuned level loops (review); capped, a law loop of any label

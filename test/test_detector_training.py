@@ -22,6 +22,7 @@ def small(tmp_path_factory):
         return dataset.build(SEEDS, jobs=1, progress=False, cache=cache), cache
 
 
+@pytest.mark.slow
 def test_a_set_is_the_same_whether_computed_or_read_from_the_cache(small):
     first, cache = small
     files = list(cache.glob('features_7000_7040_*.npz'))
@@ -60,6 +61,7 @@ def test_training_twice_gives_the_same_file(small, tmp_path):
     assert np.array_equal(a.probability(d['x']), b.probability(d['x']))
 
 
+@pytest.mark.slow
 def test_the_make_target_writes_a_model_that_names_the_code_its_figures_ran_on(tmp_path):
     # stiction-detector end to end on the fewest records it takes, as `make detector`
     # runs it: with NumPy's code for a processor without AVX-512 where that is x86 code.

@@ -171,6 +171,7 @@ def test_fits_side_by_side_give_the_report_of_fits_one_after_another(dwell_case)
     assert len(one['candidates']) == len(EFFECTS)
 
 
+@pytest.mark.slow
 def test_explain_cli_report_keeps_the_contract(tmp_path, dwell_case):
     d, _ = dwell_case
     csv = tmp_path / 'loop.csv'

@@ -8,6 +8,7 @@ import pytest
 
 @pytest.mark.flake8
 @pytest.mark.linter
+@pytest.mark.slow
 def test_flake8():
     rc, errors = main_with_errors(argv=[])
     assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)

@@ -357,6 +357,7 @@ def test_damaged_bags_through_the_analyzer(case):
 @FUZZ
 @given(meta=st.one_of(st.text(max_size=300), mutated(original('zstd')[1].encode()).map(
     lambda b: b.decode('utf-8', errors='replace'))))
+@pytest.mark.slow
 def test_a_damaged_metadata_yaml_does_not_matter_when_the_mcap_is_whole(meta):
     data = original('zstd')[0]
     with tempfile.TemporaryDirectory() as d:

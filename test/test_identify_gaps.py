@@ -161,6 +161,7 @@ def explained(loop, tmp_path_factory):
 
 
 @pytest.mark.parametrize('blank', BLANKED)
+@pytest.mark.slow
 def test_explain_names_no_dead_time_for_a_gap(explained, blank):
     ref, rep = explained['none'], explained[blank]
     assert rep['excluded'] and not ref['excluded']

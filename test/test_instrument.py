@@ -291,6 +291,7 @@ def test_a_sticky_valve_read_ahead_of_op_is_stiction_and_a_clock_skew(loop):
     assert abs(r['chains']['stiction']['S'] - truth['valve']['S']) < 0.3
 
 
+@pytest.mark.slow
 def test_a_reading_through_a_lag_and_ahead_of_op_is_still_a_clock_skew(loop):
     # A lag fitted to an early reading is a shorter one (it takes in the lead), so the
     # same chain a sample ahead fits worse: the lead shows only when the chain is refitted.

@@ -50,6 +50,7 @@ def colcon_install(tmp_path_factory):
     return ws / 'install' / 'stiction_ros'
 
 
+@pytest.mark.slow
 def test_colcon_build_gives_the_ament_layout(colcon_install):
     prefix = colcon_install
     marker = prefix / 'share/ament_index/resource_index/packages/stiction_ros'

@@ -131,6 +131,7 @@ def shipped(probe, tmp_path_factory):
 
 
 @pytest.mark.parametrize('rel', SHIPPED)
+@pytest.mark.slow
 def test_a_shipped_file_starts_its_node_and_ros2_param_load_takes_every_entry(
         probe, shipped, rel):
     client, _ = shipped[rel]

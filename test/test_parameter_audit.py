@@ -67,6 +67,7 @@ def outside(d):
 
 
 @pytest.mark.parametrize('name', ['valve', 'plant', 'controller', 'recorder', 'sim_clock'])
+@pytest.mark.slow
 def test_help_lists_what_the_running_node_declares(probe, nodes, name):
     # A venv from PyPI has no `ros2 param`: --help is where a newcomer reads them.
     run = subprocess.run([sys.executable, '-m', f'stiction_ros.nodes.{MODULES[name]}', '--help'],

@@ -4,6 +4,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 from stiction_ros.analysis.detection.resolve import LIMIT_SWINGS, limit_swings
 from stiction_ros.study import probes
 from stiction_ros.study.probes import PROBES
@@ -81,6 +82,7 @@ def test_the_gap_controller_barely_moves_op_while_the_level_stays_in_its_gap():
     assert math.isclose(probes._squared(-2.0, 4.0), -1.0)
 
 
+@pytest.mark.slow
 def test_a_detuned_loop_cycling_between_op_limits_is_refused_by_its_rule(tmp_path):
     from stiction_ros.cli.probes import main
     seeds = range(3_960_000, 3_960_002)

@@ -138,6 +138,7 @@ def significant_digits(token):
 
 
 @pytest.mark.parametrize('name', ['undershoot', 'hidden', 'no_mv'])
+@pytest.mark.slow
 def test_the_page_loads_nothing_from_outside_and_every_figure_is_embedded(pages, name):
     path, _ = pages[name]
     parsed = parse(path)

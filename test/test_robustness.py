@@ -73,6 +73,7 @@ def test_every_kth_row_multiplies_the_sample_time():
         every(_trend(), 0)
 
 
+@pytest.mark.slow
 def test_the_study_scores_the_records_make_accuracy_scores_and_its_first_row_is_the_reference(
         tmp_path):
     from stiction_ros.analysis.detection import dataset, deadband_like

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from stiction_ros.analysis.measures.still import set_point_test, still_valve
 from stiction_ros.cli.analyze import main
@@ -152,6 +153,7 @@ def test_a_loop_whose_valve_moves_settles_on_each_set_point_and_a_stuck_one_does
     assert set_point_test(pv, moving['sp'], whole) is None       # NaN inside: not read
 
 
+@pytest.mark.slow
 def test_a_dead_position_reading_is_told_from_a_stuck_valve_by_pv(tmp_path, capsys):
     dead, stuck = tmp_path / 'dead.csv', tmp_path / 'stuck.csv'
     data = _loop(0.0, dead_reading=True)
