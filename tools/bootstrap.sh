@@ -41,6 +41,6 @@ for f in $req_files; do args+=(-r "$f"); done
 "$VENV/bin/python" -m pip install --quiet "${args[@]}"
 "$VENV/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e .
 # Compile the kernels now, so that the first start of a node loads them (about 1 s).
-"$VENV/bin/python" -m stiction_ros.cli.precompile
+"$VENV/bin/python" -m stiction_ros.cli.precompile --development
 echo "$stamp_value" > "$stamp"
 echo "bootstrap: $VENV ready" >&2

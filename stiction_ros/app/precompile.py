@@ -62,8 +62,19 @@ def _analyzer() -> None:
         analyze_file(AnalyzeOptions(input=path, jobs=1))
 
 
+def _corpus() -> None:
+    # Imported here: an install without the corpus stage never loads the corpus code.
+    from stiction_ros.sim.corpus import draw_scenario, simulate
+    for seed in (0, 1):
+        simulate(draw_scenario(seed))
+
+
 STAGES: dict[str, Callable[[], None]] = {
     'nodes': _nodes, 'loop': _loop, 'analyzer': _analyzer}
+# A development venv's (tools/bootstrap.sh): the simulated corpus that the detector's
+# training, the studies and many tests draw.  Compiled in the tests instead, it took
+# each of two workers about 20 s at once.
+DEVELOPMENT_STAGES: dict[str, Callable[[], None]] = {'corpus': _corpus}
 
 
 def build_kernels(say: Say = print) -> bool:
@@ -98,7 +109,7 @@ def _build_alone() -> bool:
     return build_kernels(_say_on_stderr)
 
 
-def precompile(say: Say = print) -> float:
+def precompile(say: Say = print, development: bool = False) -> float:
     """
     Compile (or load) every kernel of :data:`STAGES`, and build the analyzer's; return seconds.
 
@@ -111,7 +122,8 @@ def precompile(say: Say = print) -> float:
     # spawn, not fork: numba's compiler is not known to survive a fork.
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context('spawn')) as pool:
         built = pool.submit(_build_alone)
-        for name, stage in STAGES.items():
+        stages = {**STAGES, **DEVELOPMENT_STAGES} if development else STAGES
+        for name, stage in stages.items():
             t = time.perf_counter()
             stage()
             say(f'precompile: {name} kernels ready in {time.perf_counter() - t:.1f} s')

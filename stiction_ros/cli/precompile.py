@@ -22,6 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--if-stale', action='store_true',
                     help='only rebuild the ahead-of-time kernels, and only when a kernel '
                          'source changed since they were built')
+    ap.add_argument('--development', action='store_true',
+                    help="also the simulated corpus's kernels (the detector's training, the "
+                         'studies and the tests draw it): tools/bootstrap.sh gives this')
     args = ap.parse_args(argv)
 
     def say(text: str) -> None:
@@ -36,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
         build_kernels(say)
         return 0
     from stiction_ros.app.precompile import precompile
-    total = precompile(say)
+    total = precompile(say, development=args.development)
     say(f'precompile: done in {total:.1f} s')
     return 0
 
