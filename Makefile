@@ -148,9 +148,12 @@ cnn-large-tune: venv
 # one CI run.  The slowest tests are listed at the end of each part: the suite must stay
 # under 15 min on 2 cores.
 TEST_JOBS ?= 2
+# The files that hold an `alone` test, so that their run collects no others
+# (test_make_test checks the list against the marks).
+ALONE_TESTS := test/test_clock_faults.py test/test_realtime.py test/test_restart.py
 test: venv
 	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile -m 'not alone' --durations=20 test
-	$(PY) -m pytest -q -m 'ros and alone' --durations=5 test
+	$(PY) -m pytest -q -m 'ros and alone' --durations=5 $(ALONE_TESTS)
 
 # The input fuzz suite with fresh random inputs, 1 500 per test (CI runs 120, always the same).
 fuzz: venv
