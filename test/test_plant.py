@@ -28,8 +28,9 @@ def test_realisation_and_hold_are_scipy_signals_to_the_bit():
             np.testing.assert_array_equal(a, b)
         dt = float(rng.uniform(0.01, 3.0))
         phi, gam, *_ = signal.cont2discrete(ref, dt, method='zoh')
-        np.testing.assert_array_equal(zoh(ours[0], ours[1], dt)[0], phi)
-        np.testing.assert_array_equal(zoh(ours[0], ours[1], dt)[1], gam)
+        our_phi, our_gam = zoh(ours[0], ours[1], dt)
+        np.testing.assert_array_equal(our_phi, phi)
+        np.testing.assert_array_equal(our_gam, gam)
 
 
 @pytest.mark.parametrize('delay', [0.0, 10.0, 2.5, 0.3])
